@@ -1,0 +1,9 @@
+"""The long-running service: Zenoh bus adapter, Rerun streaming, simulator and CLI.
+
+This package will own ``ServiceNode`` (the Zenoh session and the Rerun stream of the bus
+contract in FORMATS.md), the unicycle and lidar simulator used by ``tamp-service demo``, and
+the ``tamp-service`` command line.
+
+Not implemented yet: it is delivered by a later issue (see the Status section of the README).
+Until then the main job is ``harmonic-tamp-nav`` (``navigation.render``).
+"""
