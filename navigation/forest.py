@@ -1,0 +1,771 @@
+"""Forest of stars: organise overlapping squircle obstacles into trees (paper 001, section 4.1.2).
+
+The leaf-purging transformation of paper 001 (eq. 13-19, ``shared/notes/navigation-math.md``,
+"Forest of stars") needs the obstacles arranged as a *forest of stars*: obstacles that overlap
+form trees; each non-root obstacle ``O_i`` has one parent ``O_i*`` and a common centre
+``p_i in O_i ∩ O_i*``; leaves are purged into their parents level by level, deepest first. An
+obstacle that crosses the workspace boundary is a child of the workspace: that tree's root is the
+workspace and its leaves are eventually purged into the boundary.
+
+:func:`build_forest` computes this structure exactly (no bounding boxes): overlaps, Euclidean
+distances between obstacles and to the workspace boundary, and for every parent/child pair the
+point deepest inside both (the centre of the largest disc inscribed in the intersection).
+
+Rules
+-----
+:func:`build_forest` raises :class:`~navigation.errors.ForestError` (``.rule``, ``.obstacles``
+given as indices of the *input* list, ``-1`` for the workspace boundary) when
+
+``"cycle"``
+    the overlap graph (obstacles plus one node for the workspace boundary, linked to every
+    obstacle that crosses it) is not a forest. In particular a connected group of obstacles may
+    touch the workspace boundary at most once, and one obstacle may not cross it twice.
+``"too-close"``
+    two obstacles, or an obstacle and the workspace boundary, do not overlap but are closer than
+    ``min_gap``: the purging and the safety margins ``E_i`` need a clear gap.
+``"shallow-overlap"``
+    an overlap (or a crossing of the workspace boundary) is a grazing contact: the deepest point
+    of the intersection is less than ``min_overlap`` inside both sets, so no well-conditioned
+    common centre exists.
+``"covers-workspace"``
+    an obstacle contains the whole workspace (there is no free space).
+
+Obstacles that change nothing are dropped, not rejected, and listed in :attr:`Forest.dropped`:
+obstacles entirely outside the workspace, and obstacles contained in another obstacle.
+
+Root choice: an interior tree is rooted at its graph centre (the member of least eccentricity,
+which minimises the number of purge levels), ties broken by larger area, then lower index. A
+tree that touches the workspace boundary is rooted at the workspace; the crossing obstacle is its
+child.
+
+Symbols
+-------
+==================  ==========================================================
+``O_i``             obstacle ``i`` (a :class:`~navigation.geometry.Squircle`)
+``O_i*``            its parent (an obstacle, or the workspace boundary)
+``p_i``             common centre of ``O_i`` and ``O_i*`` (:attr:`Forest.center`)
+``depth(q)``        ``-distance(q)``: how deep ``q`` lies inside an obstacle
+==================  ==========================================================
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import networkx as nx
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .errors import ForestError
+from .geometry import COS, CX, CY, HH, HW, S, SIN, Squircle, pack
+
+__all__ = ["WORKSPACE", "NO_PARENT", "Forest", "build_forest", "separation", "common_center"]
+
+#: ``Forest.parent`` value of an obstacle whose parent is the workspace boundary.
+WORKSPACE = -1
+#: ``Forest.parent`` value of the root of an interior tree.
+NO_PARENT = -2
+
+_SAMPLES = 256  # boundary samples per obstacle
+_WS_SAMPLES = 1024  # boundary samples of the workspace
+_CENTER_GRID = 17  # coarse grid (per axis) for the common centre
+_CENTER_M = 7  # pattern-search grid (per axis) for the common centre
+_CENTER_ROTATIONS = (0.39,)  # rotated re-polls of the pattern search
+_THIN = 0.01  # common-centre depths below this are refined with exact distances
+_CONTAINED = 1e-12  # beta tolerance of the containment test
+
+
+# ---------------------------------------------------------------------- result
+@dataclass(frozen=True, slots=True, eq=False)
+class Forest:
+    """Obstacles organised as a forest of stars (paper 001 section 4.1.2).
+
+    Obstacle indices ``0 .. M-1`` refer to :attr:`obstacles` (the kept obstacles, in input
+    order); :attr:`source_index` maps them back to the input list.
+
+    Attributes
+    ----------
+    workspace : Squircle
+    obstacles : tuple of Squircle, length M
+    source_index : tuple of int
+        Index of each kept obstacle in the input list.
+    dropped : tuple of (int, str)
+        Input index and reason of each obstacle left out (outside the workspace, or contained
+        in another obstacle).
+    parent : tuple of int
+        Parent obstacle index, :data:`WORKSPACE` or :data:`NO_PARENT` (interior root).
+    children : tuple of tuple of int
+    depth : tuple of int
+        Interior roots 0; children of the workspace 1; a child's depth is its parent's + 1.
+    roots : tuple of int
+        Roots of the interior trees; interior tree ``t`` is rooted at ``roots[t]``.
+    tree_of : tuple of int
+        Tree of each obstacle: ``-1`` for the workspace tree, ``0 .. len(roots)-1`` otherwise.
+    center : ndarray, shape (M, 2)
+        Common centre ``p_i`` of obstacle ``i`` and its parent (for a workspace child: deep in
+        the obstacle and outside the workspace); a root's own centre.
+    center_depth : ndarray, shape (M,)
+        ``min`` of the depths of ``center[i]`` in ``O_i`` and in its parent (outside the
+        workspace for workspace children); a root's depth inside itself.
+    distances : ndarray, shape (M, M)
+        Euclidean distance between obstacles (0 where they overlap and on the diagonal).
+    wall_distance : ndarray, shape (M,)
+        Distance to the workspace boundary (0 for obstacles that cross it).
+    """
+
+    workspace: Squircle
+    obstacles: tuple[Squircle, ...]
+    source_index: tuple[int, ...]
+    dropped: tuple[tuple[int, str], ...]
+    parent: tuple[int, ...]
+    children: tuple[tuple[int, ...], ...]
+    depth: tuple[int, ...]
+    roots: tuple[int, ...]
+    tree_of: tuple[int, ...]
+    center: np.ndarray
+    center_depth: np.ndarray
+    distances: np.ndarray
+    wall_distance: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.obstacles)
+
+    @property
+    def max_depth(self) -> int:
+        """Largest depth of any obstacle (0 for an empty forest)."""
+        return max(self.depth, default=0)
+
+    def is_leaf(self, i: int) -> bool:
+        """True when obstacle ``i`` has no children."""
+        return not self.children[i]
+
+    def is_root(self, i: int) -> bool:
+        """True when obstacle ``i`` is the root of an interior tree."""
+        return self.parent[i] == NO_PARENT
+
+    def tree_members(self, t: int) -> tuple[int, ...]:
+        """Obstacles of tree ``t`` (``-1``: the workspace tree), in index order."""
+        if t != -1 and not 0 <= t < len(self.roots):
+            raise IndexError(f"tree {t} does not exist (trees -1 .. {len(self.roots) - 1})")
+        return tuple(i for i, k in enumerate(self.tree_of) if k == t)
+
+    def levels(self) -> list[tuple[int, ...]]:
+        """Purge levels, deepest first (eq. 13-14).
+
+        Every non-root obstacle appears once, grouped by depth from the largest depth down to
+        depth 1; after purging a level, the parents (one level up) are the new leaves.
+        """
+        movable = [i for i in range(len(self)) if self.parent[i] != NO_PARENT]
+        if not movable:
+            return []
+        top = max(self.depth[i] for i in movable)
+        return [tuple(i for i in movable if self.depth[i] == d) for d in range(top, 0, -1)]
+
+    def describe(self) -> str:
+        """Short human-readable summary (obstacles are shown by their input index ``#k``)."""
+        m = len(self)
+        n_ws = sum(1 for p in self.parent if p == WORKSPACE)
+        lines = [f"forest of {m} obstacle(s): {len(self.roots)} interior tree(s), "
+                 f"{n_ws} attached to the workspace boundary, max depth {self.max_depth}"]
+        for k, reason in self.dropped:
+            lines.append(f"  dropped #{k}: {reason}")
+
+        def render(i: int, indent: int) -> None:
+            lines.append(f"{'  ' * indent}#{self.source_index[i]} (depth {self.depth[i]}, "
+                         f"overlap {self.center_depth[i]:.3f} m)")
+            for c in self.children[i]:
+                render(c, indent + 1)
+
+        tops = [i for i in range(m) if self.parent[i] == WORKSPACE]
+        if tops:
+            lines.append("  workspace boundary")
+            for i in tops:
+                render(i, 2)
+        for t, r in enumerate(self.roots):
+            lines.append(f"  tree {t}: root #{self.source_index[r]} ({len(self.tree_members(t))} obstacle(s))")
+            for c in self.children[r]:
+                render(c, 2)
+        return "\n".join(lines)
+
+
+# ---------------------------------------------------------------------- vectorised primitives
+def _col(P: np.ndarray, k: int, ndim: int) -> np.ndarray:
+    """Column ``k`` of packed rows ``P (K, 7)`` shaped to broadcast against ``(K, ...)``."""
+    return P[:, k].reshape((-1,) + (1,) * (ndim - 1))
+
+
+def _xy(P: np.ndarray, psi: np.ndarray) -> np.ndarray:
+    """Boundary points ``(K, ..., 2)`` of packed squircles ``P (K, 7)`` at angles ``psi (K, ...)``.
+
+    Same parametrisation as :meth:`Squircle.point_at`.
+    """
+    ux, uy = np.cos(psi), np.sin(psi)
+    m = ux * uy
+    s = _col(P, S, psi.ndim)
+    rho = np.sqrt(2.0 / (1.0 + np.sqrt(np.maximum(1.0 - 4.0 * s * s * m * m, 0.0))))
+    lx = rho * ux * _col(P, HW, psi.ndim)
+    ly = rho * uy * _col(P, HH, psi.ndim)
+    c, sn = _col(P, COS, psi.ndim), _col(P, SIN, psi.ndim)
+    return np.stack((_col(P, CX, psi.ndim) + c * lx - sn * ly, _col(P, CY, psi.ndim) + sn * lx + c * ly), axis=-1)
+
+
+def _beta(P: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Obstacle function of packed squircles ``P (K, 7)`` at points ``q (K, ..., 2)``."""
+    nd = q.ndim - 1
+    dx = q[..., 0] - _col(P, CX, nd)
+    dy = q[..., 1] - _col(P, CY, nd)
+    c, sn = _col(P, COS, nd), _col(P, SIN, nd)
+    x = (dx * c + dy * sn) / _col(P, HW, nd)
+    y = (dy * c - dx * sn) / _col(P, HH, nd)
+    x2, y2 = x * x, y * y
+    s = _col(P, S, nd)
+    return 0.5 * (x2 + y2 + np.sqrt(x2 * x2 + y2 * y2 + (2.0 - 4.0 * s * s) * x2 * y2)) - 1.0
+
+
+def _grid(m: int, dim: int) -> np.ndarray:
+    """Offsets of an ``m^dim`` grid over ``[-1, 1]^dim``, shape ``(m^dim, dim)``."""
+    axes = np.meshgrid(*([np.linspace(-1.0, 1.0, m)] * dim), indexing="ij")
+    return np.stack([a.ravel() for a in axes], axis=1)
+
+
+def _pattern_min(fun, c0: np.ndarray, w0: np.ndarray, f0: np.ndarray, *, m: int, shrink: float,
+                 tol: float, max_rounds: int = 200, rotation: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Vectorised grid pattern search, one independent problem per row.
+
+    Each round evaluates ``fun(rows, points)`` (``points (k, m^D, D)``, returns ``(k, m^D)``)
+    on a grid of half-widths ``w`` around the current point; a row moves to a better grid
+    point, or shrinks its grid by ``shrink`` when none is better (the classical rule, which
+    converges to a local minimum of a smooth function). Stops when every half-width is below
+    ``tol`` (absolute). Returns ``(points (K, D), values (K,))``.
+    """
+    c, w, best = c0.astype(float).copy(), w0.astype(float).copy(), f0.astype(float).copy()
+    offs = _grid(m, c.shape[1])
+    if rotation:  # 2-D only: a rotated grid polls other directions (escapes ridge stalls)
+        cr, sr = math.cos(rotation), math.sin(rotation)
+        offs = offs @ np.array([[cr, sr], [-sr, cr]])
+    active = np.ones(len(c), bool)
+    for _ in range(max_rounds):
+        rows = np.nonzero(active)[0]
+        if rows.size == 0:
+            break
+        pts = c[rows, None, :] + w[rows, None, :] * offs[None, :, :]
+        v = fun(rows, pts)
+        k = np.argmin(v, axis=1)
+        vb = v[np.arange(len(rows)), k]
+        better = vb < best[rows]
+        moved = rows[better]
+        c[moved] = pts[better, k[better]]
+        best[moved] = vb[better]
+        w[rows[~better]] *= shrink
+        active[rows] = np.max(w[rows], axis=1) > tol
+    return c, best
+
+
+class _Body:
+    """Boundary samples of one squircle, with its packed row and a k-d tree of the samples."""
+
+    __slots__ = ("sq", "row", "psi", "pts", "w0", "spacing", "tree", "lo", "hi", "radius", "n_dense", "_dense")
+
+    def __init__(self, sq: Squircle, n: int, n_dense: int = 1024):
+        self.sq = sq
+        self.n_dense = n_dense
+        self._dense = None
+        self.row = pack([sq])[0]
+        self.psi = sq.boundary_psi(n)
+        self.pts = sq.point_at(self.psi)
+        gaps = np.diff(np.concatenate((self.psi, [self.psi[0] + 2.0 * np.pi])))
+        self.w0 = 1.5 * float(gaps.max())
+        self.spacing = float(np.max(np.linalg.norm(self.pts - np.roll(self.pts, 1, axis=0), axis=1)))
+        self.tree = cKDTree(self.pts)
+        self.lo = self.pts.min(axis=0)
+        self.hi = self.pts.max(axis=0)
+        self.radius = sq.bounding_radius
+
+    def dense_tree(self) -> cKDTree:
+        """k-d tree of ``n_dense`` boundary samples (built on first use)."""
+        if self._dense is None:
+            self._dense = cKDTree(self.sq.boundary_points(self.n_dense))
+        return self._dense
+
+
+def _signed_distance(bodies: Sequence[_Body], bid: np.ndarray, q: np.ndarray, tol: float = 1e-12) -> np.ndarray:
+    """Exact signed distances of points ``q (K, 2)`` to bodies ``bid (K,)`` (negative inside)."""
+    K = len(q)
+    psi0, w0, f0 = np.empty(K), np.empty(K), np.empty(K)
+    for b in np.unique(bid):
+        sel = np.nonzero(bid == b)[0]
+        d, k = bodies[b].tree.query(q[sel])
+        psi0[sel], w0[sel], f0[sel] = bodies[b].psi[k], bodies[b].w0, d * d
+    P = np.stack([bodies[b].row for b in bid]) if K else np.empty((0, 7))
+
+    def fun(rows, ps):
+        return ((_xy(P[rows], ps[..., 0]) - q[rows, None, :]) ** 2).sum(-1)
+
+    _, f = _pattern_min(fun, psi0[:, None], w0[:, None], f0, m=9, shrink=0.3, tol=tol)
+    inside = _beta(P, q) < 0 if K else np.zeros(0, bool)
+    return np.where(inside, -1.0, 1.0) * np.sqrt(f)
+
+
+def _pair_distance(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, tol: float = 1e-9):
+    """Minimum distance between the boundaries of bodies ``I[k]`` and ``J[k]``.
+
+    Starts from the closest pair of boundary samples (k-d tree) and refines both boundary
+    parameters by a 2-D pattern search. For disjoint convex sets (or a convex set inside the
+    other, e.g. an obstacle in the workspace) this is the Euclidean distance between the sets.
+    Returns ``(distances (K,), points_on_I (K, 2), points_on_J (K, 2))``.
+    """
+    K = len(I)
+    c0, w0, f0 = np.empty((K, 2)), np.empty((K, 2)), np.empty(K)
+    for k, (i, j) in enumerate(zip(I, J)):
+        bi, bj = bodies[i], bodies[j]
+        # far apart: every 8th sample of i finds the right region; the window widens to match
+        far = np.hypot(*(bi.row[:2] - bj.row[:2])) > bi.radius + bj.radius + 0.25
+        stride = 8 if far else 1
+        d, kk = bj.tree.query(bi.pts[::stride])
+        a = int(np.argmin(d))
+        c0[k] = bi.psi[a * stride], bj.psi[kk[a]]
+        w0[k] = stride * bi.w0, bj.w0
+        f0[k] = d[a] ** 2
+    PI = np.stack([bodies[i].row for i in I]) if K else np.empty((0, 7))
+    PJ = np.stack([bodies[j].row for j in J]) if K else np.empty((0, 7))
+
+    def fun(rows, ps):
+        return ((_xy(PI[rows], ps[..., 0]) - _xy(PJ[rows], ps[..., 1])) ** 2).sum(-1)
+
+    c, f = _pattern_min(fun, c0, w0, f0, m=7, shrink=0.4, tol=tol)
+    pa = _xy(PI, c[:, 0]) if K else np.empty((0, 2))
+    pb = _xy(PJ, c[:, 1]) if K else np.empty((0, 2))
+    return np.sqrt(f), pa, pb
+
+
+def _extreme_beta(body: _Body, other_row: np.ndarray, sign: float, vals: np.ndarray | None = None) -> float:
+    """``min`` (sign=+1) or ``max`` (sign=-1) of ``other``'s beta along ``body``'s boundary.
+
+    Exact when the extreme is near zero. When the sampled extreme ``vals`` is farther from zero
+    than beta can change between neighbouring samples, it is returned as is: only its sign is
+    used by the callers, and that sign is then certain.
+    """
+    if vals is None:
+        vals = _beta(other_row[None], body.pts[None])[0]
+    v = sign * vals
+    a = int(np.argmin(v))
+    P = other_row[None, :]
+    eps = 1e-6
+    grad = np.hypot(_beta(P, (body.pts + [eps, 0.0])[None])[0] - _beta(P, (body.pts - [eps, 0.0])[None])[0],
+                    _beta(P, (body.pts + [0.0, eps])[None])[0] - _beta(P, (body.pts - [0.0, eps])[None])[0]) / (2 * eps)
+    if abs(v[a]) > 2.0 * body.spacing * float(grad.max()) + 1e-12:
+        return float(sign * v[a])
+    Pb = body.row[None, :]
+
+    def fun(rows, ps):
+        return sign * _beta(P, _xy(Pb, ps[..., 0]))
+
+    _, f = _pattern_min(fun, np.array([[body.psi[a]]]), np.array([[body.w0]]), np.array([v[a]]),
+                        m=9, shrink=0.3, tol=1e-13)
+    return float(sign * f[0])
+
+
+def _arcs_outside(values: np.ndarray) -> int:
+    """Number of contiguous circular runs of ``values > 0``."""
+    out = values > 0
+    if out.all():
+        return 1
+    return int(np.count_nonzero(out & ~np.roll(out, 1)))
+
+
+def _common_centers(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, outside: np.ndarray,
+                    tol: float = 5e-5) -> tuple[np.ndarray, np.ndarray]:
+    """Points approximately maximising ``min(depth in I, depth in J)`` (or ``distance outside J``
+    where ``outside``), i.e. the centre of the largest disc in ``O_I ∩ O_J`` (``O_I \\ W``).
+
+    The depths are approximated by distances to dense boundary samples (k-d trees; the error is
+    about ``h^2 / (8 depth)`` for a sample spacing ``h``, i.e. micrometres at useful depths). A
+    coarse grid over the common bounding box is refined by a 2-D pattern search; the depth at
+    the result is then evaluated exactly. Returns ``(points (E, 2), depth (E,))``.
+    """
+    E = len(I)
+    if E == 0:
+        return np.empty((0, 2)), np.empty(0)
+    sgn = np.where(outside, 1.0, -1.0)  # depth in J = sgn * signed distance to J
+    lo = np.empty((E, 2))
+    hi = np.empty((E, 2))
+    for e in range(E):
+        a, b = bodies[I[e]], bodies[J[e]]
+        lo[e], hi[e] = (a.lo, a.hi) if outside[e] else (np.maximum(a.lo, b.lo), np.minimum(a.hi, b.hi))
+    hi = np.maximum(hi, lo + 1e-9)
+
+    PI = np.stack([bodies[i].row for i in I])
+    PJ = np.stack([bodies[j].row for j in J])
+
+    def objective(rows, q):
+        # approximate depths: distance to the nearest dense boundary sample, signed by beta
+        k, n = q.shape[:2]
+        dist = np.empty((2, k, n))
+        ii, jj = I[rows], J[rows]
+        for b in np.unique(np.concatenate((ii, jj))):
+            ra, rb = np.nonzero(ii == b)[0], np.nonzero(jj == b)[0]
+            d = bodies[b].dense_tree().query(np.concatenate((q[ra], q[rb])).reshape(-1, 2))[0].reshape(-1, n)
+            dist[0, ra] = d[:len(ra)]
+            dist[1, rb] = d[len(ra):]
+        da = np.where(_beta(PI[rows], q) < 0, dist[0], -dist[0])
+        db = np.where(_beta(PJ[rows], q) < 0, dist[1], -dist[1]) * np.where(outside[rows], -1.0, 1.0)[:, None]
+        return -np.minimum(da, db)
+
+    g = _CENTER_GRID
+    t = (np.arange(g) + 0.5) / g
+    tx, ty = np.meshgrid(t, t, indexing="ij")
+    pts = lo[:, None, :] + (hi - lo)[:, None, :] * np.stack((tx.ravel(), ty.ravel()), axis=1)[None]
+    rows = np.arange(E)
+    v = objective(rows, pts)
+    k = np.argmin(v, axis=1)
+    start, f0 = pts[rows, k], v[rows, k]
+    w = (hi - lo) / g
+    c, f = _pattern_min(objective, start, w, f0, m=_CENTER_M, shrink=0.5, tol=tol, max_rounds=80)
+    for rot in _CENTER_ROTATIONS:  # the max-min has ridges; re-poll along rotated directions
+        c, f = _pattern_min(objective, c, 0.1 * w, f, m=_CENTER_M, shrink=0.5, tol=tol, max_rounds=60, rotation=rot)
+    depth = np.minimum(-_signed_distance(bodies, I, c), sgn * _signed_distance(bodies, J, c))
+    # Thin intersections: sample distances are too coarse below a few sample spacings; refine
+    # those (few) with exact distances.
+    thin = np.nonzero(depth < _THIN)[0]
+    if thin.size:
+        c[thin], depth[thin] = _thin_centers(bodies, I[thin], J[thin], sgn[thin], c[thin], depth[thin])
+    return c, depth
+
+
+def _thin_centers(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, sgn: np.ndarray, c: np.ndarray,
+                  depth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Common centres of thin intersections (lens-shaped, thinner than the sample spacing).
+
+    The boundary point ``a`` of ``O_I`` deepest in ``O_J`` (or outside the workspace) spans the
+    lens at its thickest; the centre starts half that depth inside ``O_I`` from ``a`` and is
+    polished by a pattern search on the exact distances. The better of this and the current
+    estimate ``c`` is returned.
+    """
+    K = len(I)
+    PI = np.stack([bodies[i].row for i in I])
+
+    def depth_j(rows, q):  # depth of points q (k, n, 2) in O_J (outside the workspace)
+        k, n = q.shape[:2]
+        sd = _signed_distance(bodies, np.repeat(J[rows], n), q.reshape(-1, 2), tol=1e-10).reshape(k, n)
+        return sgn[rows, None] * sd
+
+    psi0, w0 = np.empty(K), np.empty(K)
+    for k in range(K):
+        bi = bodies[I[k]]
+        vals = sgn[k] * _beta(bodies[J[k]].row[None], bi.pts[None])[0]  # larger: deeper in the J-set
+        a = int(np.argmax(vals))
+        psi0[k], w0[k] = bi.psi[a], bi.w0
+    rows = np.arange(K)
+    f0 = -depth_j(rows, _xy(PI, psi0[:, None]))[:, 0]
+    psi, f = _pattern_min(lambda r, ps: -depth_j(r, _xy(PI[r], ps[..., 0])), psi0[:, None], w0[:, None], f0,
+                          m=9, shrink=0.3, tol=1e-10)
+    a = _xy(PI, psi[:, 0])
+    span = np.maximum(-f, 0.0)
+    eps = 1e-7
+    normal = np.stack([_beta(PI, (a + [eps, 0.0])[:, None])[:, 0] - _beta(PI, (a - [eps, 0.0])[:, None])[:, 0],
+                       _beta(PI, (a + [0.0, eps])[:, None])[:, 0] - _beta(PI, (a - [0.0, eps])[:, None])[:, 0]], 1)
+    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+    start = a - 0.5 * span[:, None] * normal
+
+    def objective(r, q):
+        k, n = q.shape[:2]
+        di = -_signed_distance(bodies, np.repeat(I[r], n), q.reshape(-1, 2), tol=1e-10).reshape(k, n)
+        return -np.minimum(di, depth_j(r, q))
+
+    fs = objective(rows, start[:, None, :])[:, 0]
+    use = fs < -depth
+    c0 = np.where(use[:, None], start, c)
+    f0 = np.where(use, fs, -depth)
+    w = np.maximum(0.5 * np.maximum(span, -f0), 1e-6)[:, None].repeat(2, axis=1)
+    for rot in (0.0, *_CENTER_ROTATIONS):
+        c0, f0 = _pattern_min(objective, c0, w, f0, m=5, shrink=0.5, tol=1e-3 * float(w.min()) + 1e-9,
+                              max_rounds=40, rotation=rot)
+        w = 0.1 * w
+    return c0, -f0
+
+
+# ---------------------------------------------------------------------- public helpers
+def separation(a: Squircle, b: Squircle) -> float:
+    """Euclidean distance between two squircles, 0 when they overlap or one contains the other.
+
+    Examples
+    --------
+    >>> a = Squircle((0.0, 0.0), 1.0, 1.0, s=0.0)
+    >>> b = Squircle((2.0, 0.0), 1.0, 1.0, s=0.0)
+    >>> round(separation(a, b), 9)
+    1.0
+    """
+    A, B = _Body(a, _SAMPLES), _Body(b, _SAMPLES)
+    if _overlap(A, B):
+        return 0.0
+    return float(_pair_distance([A, B], np.array([0]), np.array([1]))[0][0])
+
+
+def common_center(a: Squircle, b: Squircle, *, outside_b: bool = False) -> tuple[np.ndarray, float]:
+    """Point deep inside ``a ∩ b`` (``a`` minus ``b`` when ``outside_b``) and its depth.
+
+    The depth is ``min(-a.distance(p), -b.distance(p))`` (``b.distance(p)`` when
+    ``outside_b``); it is negative when the sets do not overlap.
+
+    Examples
+    --------
+    >>> a = Squircle((0.0, 0.0), 2.0, 0.4, s=0.99)
+    >>> b = Squircle((0.0, 0.0), 0.4, 2.0, s=0.99)
+    >>> p, depth = common_center(a, b)
+    >>> bool(abs(depth - 0.2) < 1e-3)
+    True
+    """
+    A = _Body(a, _SAMPLES)
+    B = _Body(b, _WS_SAMPLES, n_dense=4096) if outside_b else _Body(b, _SAMPLES)
+    c, d = _common_centers([A, B], np.array([0]), np.array([1]), np.array([bool(outside_b)]))
+    return c[0], float(d[0])
+
+
+def _overlap(A: _Body, B: _Body) -> bool:
+    """Exact overlap test of two convex squircles (boundaries cross, or containment)."""
+    va = _beta(B.row[None], A.pts[None])[0]
+    if va.min() < 0:
+        return True
+    vb = _beta(A.row[None], B.pts[None])[0]
+    if vb.min() < 0:
+        return True
+    return _extreme_beta(A, B.row, 1.0, va) < 0
+
+
+# ---------------------------------------------------------------------- construction
+def _plural(items: Sequence[int]) -> str:
+    """``"0, 1 and the workspace boundary"``: input indices, ``-1`` for the boundary (last)."""
+    names = [str(k) for k in sorted(items) if k != -1] + (["the workspace boundary"] if -1 in items else [])
+    if len(names) == 1:
+        return names[0]
+    return ", ".join(names[:-1]) + " and " + names[-1]
+
+
+def build_forest(workspace: Squircle, obstacles: Sequence[Squircle], *, min_gap: float = 1e-3,
+                 min_overlap: float = 1e-3) -> Forest:
+    """Organise ``obstacles`` inside ``workspace`` as a forest of stars (paper 001 section 4.1.2).
+
+    Parameters
+    ----------
+    workspace : Squircle
+        Outer boundary; the free space is inside it.
+    obstacles : sequence of Squircle
+        Obstacles; they may overlap each other and cross the workspace boundary.
+    min_gap : float
+        Smallest allowed distance between obstacles (or an obstacle and the workspace
+        boundary) that do not overlap.
+    min_overlap : float
+        Smallest allowed depth of the common centre of an overlap.
+
+    Returns
+    -------
+    Forest
+
+    Raises
+    ------
+    ForestError
+        With ``rule`` ``"cycle"``, ``"too-close"``, ``"shallow-overlap"`` or
+        ``"covers-workspace"`` (see the module docstring); ``obstacles`` holds input indices,
+        ``-1`` standing for the workspace boundary.
+    TypeError
+        If an obstacle is not a :class:`Squircle`.
+
+    Examples
+    --------
+    >>> ws = Squircle((0.0, 0.0), 4.0, 4.0)
+    >>> wall = Squircle((0.0, 0.0), 1.0, 0.2)
+    >>> post = Squircle((0.5, 0.0), 0.2, 1.0)
+    >>> f = build_forest(ws, [wall, post])
+    >>> f.parent, f.depth, f.levels()
+    ((-2, 0), (0, 1), [(1,)])
+    """
+    if not isinstance(workspace, Squircle):
+        raise TypeError(f"workspace must be a Squircle, got {type(workspace).__name__}")
+    obstacles = tuple(obstacles)
+    for k, o in enumerate(obstacles):
+        if not isinstance(o, Squircle):
+            raise TypeError(f"obstacles[{k}] must be a Squircle, got {type(o).__name__}")
+    min_gap, min_overlap = float(min_gap), float(min_overlap)
+    if not (math.isfinite(min_gap) and min_gap >= 0 and math.isfinite(min_overlap) and min_overlap >= 0):
+        raise ValueError(f"min_gap and min_overlap must be finite and >= 0, got {min_gap}, {min_overlap}")
+
+    n = len(obstacles)
+    bodies = [_Body(o, _SAMPLES) for o in obstacles]
+    W = n  # body index of the workspace
+    bodies.append(_Body(workspace, _WS_SAMPLES, n_dense=4096))
+    ws = bodies[W]
+
+    # --- relation of every obstacle to the workspace boundary
+    dropped: dict[int, str] = {}
+    crossing: set[int] = set()
+    for k in range(n):
+        vals = _beta(ws.row[None], bodies[k].pts[None])[0]
+        if vals.max() < 0 and _extreme_beta(bodies[k], ws.row, -1.0, vals) <= 0:
+            continue  # inside the workspace
+        if vals.min() > 0 and _extreme_beta(bodies[k], ws.row, 1.0, vals) > 0:
+            if np.all(_beta(bodies[k].row[None], ws.pts[None])[0] <= 0):
+                raise ForestError(f"obstacle {k} covers the whole workspace: there is no free space",
+                                  obstacles=(k,), rule="covers-workspace")
+            dropped[k] = "entirely outside the workspace"
+            continue
+        if _arcs_outside(vals) > 1:
+            raise ForestError(f"obstacle {k} crosses the workspace boundary more than once, which closes "
+                              f"a cycle through the workspace boundary (a wall may touch the boundary only "
+                              f"at one place)", obstacles=(k, -1), rule="cycle")
+        crossing.add(k)
+
+    # --- candidate pairs (bounding circles), exact overlap and containment
+    live = [k for k in range(n) if k not in dropped]
+    overlaps: set[tuple[int, int]] = set()
+    if len(live) > 1:
+        cs = np.array([obstacles[k].center for k in live])
+        rs = np.array([bodies[k].radius for k in live])
+        margin = max(min_gap, 1e-9) * 2.0
+        tree = cKDTree(cs)
+        for a, b in sorted(tree.query_pairs(2.0 * rs.max() + margin)):
+            i, j = live[a], live[b]
+            if np.hypot(*(cs[a] - cs[b])) > rs[a] + rs[b] + margin:
+                continue
+            if not _overlap(bodies[i], bodies[j]):
+                continue
+            overlaps.add((i, j))
+            # containment (redundant obstacles): j inside i, or i inside j
+            bi, bj = bodies[i], bodies[j]
+            vj = _beta(bi.row[None], bj.pts[None])[0]
+            vi = _beta(bj.row[None], bi.pts[None])[0]
+            # (up to rounding: an identical copy, or one touching from inside, is contained too)
+            if vj.max() <= _CONTAINED and _extreme_beta(bj, bi.row, -1.0, vj) <= _CONTAINED:
+                dropped.setdefault(j, f"contained in obstacle {i}")
+            elif vi.max() <= _CONTAINED and _extreme_beta(bi, bj.row, -1.0, vi) <= _CONTAINED:
+                dropped.setdefault(i, f"contained in obstacle {j}")
+
+    keep = [k for k in range(n) if k not in dropped]
+    m = len(keep)
+    new = {k: a for a, k in enumerate(keep)}
+    edges = sorted((new[i], new[j]) for i, j in overlaps if i in new and j in new)
+    ws_children = sorted(new[k] for k in crossing if k in new)
+
+    # --- rule: the overlap graph must be a forest
+    G = nx.Graph()
+    G.add_nodes_from(range(m))
+    G.add_node(WORKSPACE)
+    G.add_edges_from(edges)
+    G.add_edges_from((WORKSPACE, i) for i in ws_children)
+    cycles = nx.cycle_basis(G)
+    if cycles:
+        cyc = min(cycles, key=lambda c: (len(c), sorted(c)))
+        if WORKSPACE in cyc:  # start the cycle at the workspace for a readable message
+            r = cyc.index(WORKSPACE)
+            cyc = cyc[r:] + cyc[:r]
+        ids = [keep[i] if i != WORKSPACE else -1 for i in cyc]
+        path = "-".join("ws" if k == -1 else str(k) for k in ids + ids[:1])
+        obst = sorted(k for k in ids if k != -1)
+        raise ForestError(f"obstacles {_plural(ids)} overlap in a cycle ({path}); overlapping "
+                          f"obstacles must form trees, and each tree may touch the workspace boundary at "
+                          f"most once", obstacles=tuple(obst) + ((-1,) if -1 in ids else ()), rule="cycle")
+
+    # --- exact distances
+    distances = np.zeros((m, m))
+    edge_set = set(edges)
+    pairs = [(a, b) for a in range(m) for b in range(a + 1, m) if (a, b) not in edge_set]
+    if pairs:
+        I = np.array([keep[a] for a, _ in pairs])
+        J = np.array([keep[b] for _, b in pairs])
+        d, _, _ = _pair_distance(bodies, I, J)
+        for (a, b), v in zip(pairs, d):
+            distances[a, b] = distances[b, a] = v
+    wall = np.zeros(m)
+    inner = [a for a in range(m) if a not in set(ws_children)]
+    if inner:
+        d, _, _ = _pair_distance(bodies, np.array([keep[a] for a in inner]), np.full(len(inner), W))
+        wall[inner] = d
+
+    close = [(a, b, distances[a, b]) for a, b in pairs if distances[a, b] < min_gap]
+    if close:
+        a, b, v = min(close, key=lambda t: t[2])
+        raise ForestError(f"obstacles {keep[a]} and {keep[b]} are {v:.3g} m apart without overlapping "
+                          f"(closer than min_gap = {min_gap:g} m): separate them or make them overlap",
+                          obstacles=(keep[a], keep[b]), rule="too-close")
+    near_wall = [a for a in inner if wall[a] < min_gap]
+    if near_wall:
+        a = min(near_wall, key=lambda t: wall[t])
+        raise ForestError(f"obstacle {keep[a]} is {wall[a]:.3g} m from the workspace boundary without "
+                          f"crossing it (closer than min_gap = {min_gap:g} m)",
+                          obstacles=(keep[a], -1), rule="too-close")
+
+    # --- trees, roots, parents, depths
+    area: dict[int, float] = {}
+    parent = [NO_PARENT] * m
+    depth = [0] * m
+    tree_of = [0] * m
+    roots: list[int] = []
+    comps = sorted((sorted(c) for c in nx.connected_components(G)), key=lambda c: c[0])
+    interior = [c for c in comps if WORKSPACE not in c]
+
+    def orient(root: int, tree_id: int) -> None:
+        """Parents and depths by breadth-first search from ``root`` (the workspace: depth 0)."""
+        for u, v in nx.bfs_edges(G, root, sort_neighbors=sorted):
+            parent[v] = u
+            depth[v] = (0 if u == WORKSPACE else depth[u]) + 1
+            tree_of[v] = tree_id
+
+    orient(WORKSPACE, -1)
+    for t, comp in enumerate(interior):
+        if len(comp) == 1:
+            root = comp[0]
+        else:
+            ecc = nx.eccentricity(G.subgraph(comp))
+            for i in comp:
+                if i not in area:  # rounded: equal shapes tie exactly, then the lower index wins
+                    area[i] = round(obstacles[keep[i]].area, 9)
+            root = min(comp, key=lambda i: (ecc[i], -area[i], i))
+        roots.append(root)
+        tree_of[root] = t
+        orient(root, t)
+    children = [[] for _ in range(m)]
+    for i, p in enumerate(parent):
+        if p >= 0:
+            children[p].append(i)
+
+    # --- common centres and their depths
+    center = np.zeros((m, 2))
+    cdepth = np.zeros(m)
+    nonroot = [i for i in range(m) if parent[i] != NO_PARENT]
+    if nonroot:
+        I = np.array([keep[i] for i in nonroot])
+        J = np.array([W if parent[i] == WORKSPACE else keep[parent[i]] for i in nonroot])
+        c, d = _common_centers(bodies, I, J, J == W)
+        center[nonroot], cdepth[nonroot] = c, d
+    if roots:
+        rc = np.array([obstacles[keep[r]].center for r in roots])
+        center[roots] = rc
+        cdepth[roots] = -_signed_distance(bodies, np.array([keep[r] for r in roots]), rc)
+    shallow = [i for i in nonroot if cdepth[i] < min_overlap]
+    if shallow:
+        i = min(shallow, key=lambda t: cdepth[t])
+        other = -1 if parent[i] == WORKSPACE else keep[parent[i]]
+        what = ("crosses the workspace boundary" if other == -1 else f"overlaps obstacle {other}")
+        raise ForestError(f"obstacle {keep[i]} {what} only by a grazing contact (the intersection is "
+                          f"{max(cdepth[i], 0.0):.3g} m deep, less than min_overlap = {min_overlap:g} m): "
+                          f"separate them or make them overlap more", obstacles=(keep[i], other),
+                          rule="shallow-overlap")
+
+    for arr in (center, cdepth, distances, wall):
+        arr.flags.writeable = False
+    return Forest(
+        workspace=workspace,
+        obstacles=tuple(obstacles[k] for k in keep),
+        source_index=tuple(keep),
+        dropped=tuple(sorted(dropped.items())),
+        parent=tuple(parent),
+        children=tuple(tuple(c) for c in children),
+        depth=tuple(depth),
+        roots=tuple(roots),
+        tree_of=tuple(tree_of),
+        center=center,
+        center_depth=cdepth,
+        distances=distances,
+        wall_distance=wall,
+    )

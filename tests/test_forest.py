@@ -1,0 +1,419 @@
+"""Guarantees of navigation.forest: trees, parents and common centres of overlapping obstacles,
+exact distances, and the rules of the forest of stars (paper 001 section 4.1.2)."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from navigation.errors import ForestError
+from navigation.forest import NO_PARENT, WORKSPACE, Forest, build_forest, common_center, separation
+from navigation.geometry import Squircle
+from navigation.world import load_world
+
+from .conftest import world_file
+from .worldgen import GAP, MIN_OVERLAP, random_forest_world, random_free_points
+
+WS = Squircle((5.0, 5.0), 10.0, 10.0, 0.0, 0.99)
+
+
+def wall(cx: float, cy: float, length: float, thick: float = 0.2, theta: float = 0.0, s: float = 0.99) -> Squircle:
+    return Squircle((cx, cy), length, thick, theta, s)
+
+
+def vwall(cx: float, cy: float, length: float, thick: float = 0.2) -> Squircle:
+    return Squircle((cx, cy), thick, length, 0.0, 0.99)
+
+
+# An interior chain of five walls (rooted at its middle), a chain of three hanging from the
+# bottom of the workspace, and a lone circle.
+COMB = [
+    wall(3.0, 5.0, 1.0),  # 0
+    vwall(3.4, 5.2, 1.2),  # 1
+    wall(3.9, 5.7, 1.2),  # 2  centre of the interior chain
+    vwall(4.4, 6.2, 1.2),  # 3
+    wall(4.9, 6.7, 1.2),  # 4
+    vwall(7.0, 0.6, 1.8),  # 5  crosses the bottom boundary
+    wall(7.6, 1.4, 1.4),  # 6
+    vwall(8.2, 2.0, 1.4),  # 7
+    Squircle((2.0, 8.0), 0.6, 0.6, 0.0, 0.0),  # 8  lone circle
+]
+
+
+@pytest.fixture(scope="module")
+def comb() -> Forest:
+    return build_forest(WS, COMB)
+
+
+# ---------------------------------------------------------------------- invariants
+def check_invariants(f: Forest, max_depth: int | None = None) -> None:
+    """Structural and geometric guarantees every forest satisfies."""
+    m = len(f)
+    assert len(f.parent) == len(f.depth) == len(f.tree_of) == len(f.children) == len(f.source_index) == m
+    assert f.center.shape == (m, 2) and f.center_depth.shape == (m,)
+    assert f.distances.shape == (m, m) and f.wall_distance.shape == (m,)
+    kept = set(f.source_index)
+    assert kept.isdisjoint(k for k, _ in f.dropped)
+    assert list(f.source_index) == sorted(f.source_index)
+    for t, r in enumerate(f.roots):
+        assert f.parent[r] == NO_PARENT and f.depth[r] == 0 and f.tree_of[r] == t
+    for i in range(m):
+        p = f.parent[i]
+        assert tuple(sorted(f.children[i])) == tuple(j for j in range(m) if f.parent[j] == i)
+        if p == NO_PARENT:
+            assert i in f.roots
+            continue
+        if p == WORKSPACE:
+            assert f.depth[i] == 1 and f.tree_of[i] == -1
+            # the common centre is inside the obstacle and outside the workspace
+            assert f.obstacles[i].beta(f.center[i]) < 0 < f.workspace.beta(f.center[i])
+            assert f.wall_distance[i] == 0.0
+        else:
+            assert f.depth[i] == f.depth[p] + 1 and f.tree_of[i] == f.tree_of[p]
+            assert f.obstacles[i].beta(f.center[i]) < 0 and f.obstacles[p].beta(f.center[i]) < 0
+            assert f.distances[i, p] == 0.0
+        assert f.center_depth[i] >= 1e-3
+    if max_depth is not None:
+        assert max(f.depth, default=0) <= max_depth
+    # distances: symmetric, zero on the diagonal and exactly for parent/child pairs
+    assert np.array_equal(f.distances, f.distances.T)
+    assert np.all(np.diag(f.distances) == 0.0)
+    related = {(i, f.parent[i]) for i in range(m) if f.parent[i] >= 0}
+    related |= {(b, a) for a, b in related}
+    for i in range(m):
+        for j in range(i + 1, m):
+            assert (f.distances[i, j] == 0.0) == ((i, j) in related)
+            if (i, j) not in related:
+                assert f.distances[i, j] >= 1e-3
+    for i in range(m):
+        assert (f.wall_distance[i] == 0.0) == (f.parent[i] == WORKSPACE)
+    # levels: every non-root once, deepest first, consistent with depth
+    levels = f.levels()
+    flat = [i for lev in levels for i in lev]
+    assert sorted(flat) == [i for i in range(m) if f.parent[i] != NO_PARENT]
+    assert [f.depth[lev[0]] for lev in levels] == list(range(len(levels), 0, -1))
+    for lev in levels:
+        assert len({f.depth[i] for i in lev}) == 1
+
+
+def check_geometry(f: Forest, samples: int = 256) -> None:
+    """Overlaps and disjointness seen independently, with Squircle.beta on boundary samples."""
+    pts = [o.boundary_points(samples) for o in f.obstacles]
+    m = len(f)
+    for i in range(m):
+        for j in range(i + 1, m):
+            overlap = np.any(f.obstacles[j].beta(pts[i]) < 0) or np.any(f.obstacles[i].beta(pts[j]) < 0)
+            assert overlap == (f.distances[i, j] == 0.0), (i, j)
+
+
+# ---------------------------------------------------------------------- shared worlds
+class TestSharedWorlds:
+    def test_simple_has_one_tree_of_two(self):
+        f = load_world(world_file("simple")).forest()
+        check_invariants(f)
+        assert f.tree_of[2] == f.tree_of[3]
+        assert {f.parent[2], f.parent[3]} == {NO_PARENT, 2} or {f.parent[2], f.parent[3]} == {NO_PARENT, 3}
+        assert f.parent[0] == f.parent[1] == NO_PARENT
+        assert len(f.roots) == 3 and WORKSPACE not in f.parent
+        assert f.levels() == [(3,)]  # equal eccentricity: the larger obstacle (2) is the root
+
+    def test_office_builds_and_has_workspace_children(self):
+        f = load_world(world_file("office")).forest(0.0)
+        check_invariants(f)
+        check_geometry(f)
+        ws_children = [i for i in range(len(f)) if f.parent[i] == WORKSPACE]
+        assert {8, 11, 13, 15, 18, 19, 21} <= set(ws_children)
+        assert f.parent[20] == 19 and f.parent[17] == 16 and f.parent[16] == 15
+        assert f.depth[17] == 3
+        assert f.tree_members(-1) == tuple(sorted(i for i in range(len(f)) if f.tree_of[i] == -1))
+
+    def test_cluttered20_builds_with_deep_trees(self):
+        f = load_world(world_file("cluttered20")).forest(0.0)
+        check_invariants(f)
+        check_geometry(f)
+        assert WORKSPACE not in f.parent
+        # the chain 0-1-2-3 is one tree, rooted at its centre: three purge levels
+        t = f.tree_of[0]
+        assert set(f.tree_members(t)) == {0, 1, 2, 3}
+        assert max(f.depth[i] for i in f.tree_members(t)) + 1 >= 3
+        assert f.roots[t] in (1, 2)
+
+    def test_cluttered20_inflated_closes_a_cycle(self):
+        with pytest.raises(ForestError) as info:
+            load_world(world_file("cluttered20")).forest(0.1)
+        assert info.value.rule == "cycle"
+        assert set(info.value.obstacles) == {0, 1, 2}
+        assert "0, 1 and 2" in str(info.value) and "cycle" in str(info.value)
+
+
+# ---------------------------------------------------------------------- structure
+class TestStructure:
+    def test_parents_depths_and_roots(self, comb):
+        check_invariants(comb)
+        check_geometry(comb)
+        assert comb.roots == (2, 8)
+        assert comb.parent == (1, 2, NO_PARENT, 2, 3, WORKSPACE, 5, 6, NO_PARENT)
+        assert comb.depth == (2, 1, 0, 1, 2, 1, 2, 3, 0)
+        assert comb.tree_of == (0, 0, 0, 0, 0, -1, -1, -1, 1)
+        assert comb.children[2] == (1, 3) and comb.children[8] == ()
+
+    def test_levels_deepest_first(self, comb):
+        assert comb.levels() == [(7,), (0, 4, 6), (1, 3, 5)]
+        assert comb.max_depth == 3
+
+    def test_accessors(self, comb):
+        assert len(comb) == 9
+        assert comb.is_leaf(0) and comb.is_leaf(7) and not comb.is_leaf(2)
+        assert comb.is_root(2) and not comb.is_root(5)
+        assert comb.tree_members(0) == (0, 1, 2, 3, 4)
+        assert comb.tree_members(-1) == (5, 6, 7)
+        assert comb.tree_members(1) == (8,)
+        with pytest.raises(IndexError):
+            comb.tree_members(2)
+        text = comb.describe()
+        assert "2 interior tree(s)" in text and "workspace boundary" in text and "#7 (depth 3" in text
+
+    def test_root_ties_go_to_the_larger_obstacle(self):
+        small, big = wall(3.0, 3.0, 0.8), vwall(3.3, 3.4, 1.4, 0.3)
+        assert build_forest(WS, [small, big]).roots == (1,)
+        assert build_forest(WS, [big, small]).roots == (0,)
+
+    def test_arrays_are_read_only(self, comb):
+        with pytest.raises(ValueError):
+            comb.center[0, 0] = 1.0
+
+    def test_empty(self):
+        f = build_forest(WS, [])
+        assert len(f) == 0 and f.levels() == [] and f.roots == () and f.center.shape == (0, 2)
+
+
+# ---------------------------------------------------------------------- common centres
+class TestCommonCentre:
+    def test_cross_of_two_walls(self):
+        f = build_forest(WS, [wall(5.0, 5.0, 2.0, 0.4), vwall(5.0, 5.0, 2.0, 0.4)])
+        # the intersection is the 0.4 x 0.4 square: inscribed disc of radius 0.2 at the centre
+        assert f.center_depth[1] == pytest.approx(0.2, abs=1e-3)
+        assert np.allclose(f.center[1], (5.0, 5.0), atol=5e-3)
+
+    def test_depth_is_exact_at_the_centre(self, comb):
+        for i in range(len(comb)):
+            p, c = comb.parent[i], comb.center[i]
+            if p == NO_PARENT:
+                assert np.allclose(c, comb.obstacles[i].center)
+                expected = -comb.obstacles[i].distance(c)
+            elif p == WORKSPACE:
+                expected = min(-comb.obstacles[i].distance(c), comb.workspace.distance(c))
+            else:
+                expected = min(-comb.obstacles[i].distance(c), -comb.obstacles[p].distance(c))
+            assert comb.center_depth[i] == pytest.approx(expected, abs=1e-9)
+
+    def test_centre_is_near_the_deepest_point(self, comb):
+        """Against a brute-force grid of the max-min depth (within 2 % or 1 mm)."""
+        for i in (0, 4, 5, 7):
+            p = comb.parent[i]
+            a = comb.obstacles[i]
+            lo, hi = a.boundary_points(64).min(0), a.boundary_points(64).max(0)
+            gx, gy = np.meshgrid(np.linspace(lo[0], hi[0], 90), np.linspace(lo[1], hi[1], 90))
+            q = np.stack((gx.ravel(), gy.ravel()), axis=1)
+            q = q[a.beta(q) < 0]
+            other = comb.workspace.distance(q) if p == WORKSPACE else -comb.obstacles[p].distance(q)
+            best = np.max(np.minimum(-a.distance(q), other))
+            assert comb.center_depth[i] >= best - max(0.02 * best, 1e-3)
+
+    def test_public_helpers(self):
+        a, b = wall(2.0, 2.0, 1.0), vwall(2.4, 2.2, 1.0)
+        p, depth = common_center(a, b)
+        assert a.beta(p) < 0 and b.beta(p) < 0 and depth == pytest.approx(0.1, abs=2e-3)
+        p, depth = common_center(wall(0.2, 5.0, 1.0), WS, outside_b=True)
+        assert WS.beta(p) > 0 and depth == pytest.approx(0.1, abs=2e-3)
+        assert separation(a, b) == 0.0
+        assert separation(wall(2.0, 2.0, 1.0), wall(2.0, 2.5, 1.0)) == pytest.approx(0.3, abs=1e-9)
+        assert separation(Squircle((0, 0), 2, 2), Squircle((0, 0), 0.5, 0.5)) == 0.0  # containment
+
+
+# ---------------------------------------------------------------------- distances
+class TestDistances:
+    def test_pair_distance_matches_brute_force(self, comb):
+        rng = np.random.default_rng(3)
+        m = len(comb)
+        for _ in range(12):
+            i, j = rng.choice(m, 2, replace=False)
+            if comb.distances[i, j] == 0:
+                continue
+            a, b = comb.obstacles[i], comb.obstacles[j]
+            psi = a.boundary_psi(2000)
+            d = b.distance(a.point_at(psi))
+            k = int(np.argmin(d))
+            fine = np.linspace(psi[k - 1], psi[(k + 1) % len(psi)] + (2 * np.pi if k + 1 == len(psi) else 0), 401)
+            brute = min(d.min(), b.distance(a.point_at(fine)).min())
+            assert comb.distances[i, j] <= brute + 1e-12
+            assert comb.distances[i, j] >= brute - 1e-8
+
+    def test_known_gaps(self):
+        f = build_forest(WS, [wall(3.0, 3.0, 1.0), wall(3.0, 3.5, 1.0), Squircle((6.0, 3.0), 1.0, 1.0, 0.0, 0.0)])
+        assert f.distances[0, 1] == pytest.approx(0.3, abs=1e-9)
+        assert f.distances[0, 2] == pytest.approx(6.0 - 0.5 - 3.5, abs=1e-9)
+        # nearest to the bottom (circle) and left (wall) sides; the workspace corners are rounded
+        assert f.wall_distance[2] == pytest.approx(-WS.distance([6.0, 2.5]), abs=1e-4)
+        assert f.wall_distance[0] == pytest.approx(-WS.distance([2.5, 3.0]), abs=1e-4)
+
+    def test_wall_distance_matches_brute_force(self, comb):
+        for i in range(len(comb)):
+            if comb.parent[i] == WORKSPACE:
+                continue
+            brute = (-comb.workspace.distance(comb.obstacles[i].boundary_points(3000))).min()
+            assert brute - 1e-6 <= comb.wall_distance[i] <= brute + 1e-12
+
+
+# ---------------------------------------------------------------------- rules
+class TestRules:
+    def _raises(self, obstacles, rule, involved, workspace=WS, **kw) -> ForestError:
+        with pytest.raises(ForestError) as info:
+            build_forest(workspace, obstacles, **kw)
+        err = info.value
+        assert err.rule == rule
+        assert set(err.obstacles) == set(involved)
+        for k in involved:
+            assert (str(k) if k >= 0 else "workspace") in str(err)
+        return err
+
+    def test_cycle_of_three(self):
+        tri = [wall(3.0, 2.0, 2.4), vwall(2.0, 3.0, 2.4), wall(2.9, 2.9, 3.68, theta=-np.pi / 4)]
+        err = self._raises(tri, "cycle", (0, 1, 2))
+        assert "cycle" in str(err)
+
+    def test_cycle_through_the_workspace(self):
+        obs = [wall(0.85, 3.0, 2.3), wall(0.85, 6.0, 2.3), vwall(1.5, 4.5, 3.6), Squircle((8, 8), 0.5, 0.5)]
+        self._raises(obs, "cycle", (0, 1, 2, -1))
+
+    def test_wall_crossing_the_boundary_twice(self):
+        self._raises([wall(5.0, 5.0, 10.6)], "cycle", (0, -1))
+
+    def test_too_close(self):
+        outside = Squircle((20.0, 20.0), 1.0, 1.0)
+        err = self._raises([outside, wall(3.0, 3.0, 1.0), wall(3.0, 3.2 + 5e-4, 1.0)], "too-close", (1, 2))
+        assert "1 and 2" in str(err)
+        # the same pair is fine with a smaller min_gap
+        f = build_forest(WS, [wall(3.0, 3.0, 1.0), wall(3.0, 3.2 + 5e-4, 1.0)], min_gap=1e-4)
+        assert f.distances[0, 1] == pytest.approx(5e-4, abs=1e-9)
+
+    def test_too_close_to_the_workspace_boundary(self):
+        self._raises([wall(0.5005, 5.0, 1.0)], "too-close", (0, -1))
+
+    def test_shallow_overlap(self):
+        self._raises([wall(3.0, 3.0, 1.0), wall(3.0, 3.2 - 5e-4, 1.0)], "shallow-overlap", (0, 1))
+        f = build_forest(WS, [wall(3.0, 3.0, 1.0), wall(3.0, 3.2 - 5e-4, 1.0)], min_overlap=1e-4)
+        assert f.center_depth[1] == pytest.approx(2.5e-4, abs=2e-5)
+
+    def test_shallow_crossing_of_the_boundary(self):
+        self._raises([wall(0.5 - 5e-4, 5.0, 1.0)], "shallow-overlap", (0, -1))
+        f = build_forest(WS, [wall(0.5 - 5e-4, 5.0, 1.0)], min_overlap=1e-5)
+        assert f.center_depth[0] == pytest.approx(2.5e-4, abs=1e-6)
+        assert np.allclose(f.center[0], (-2.5e-4, 5.0), atol=1e-5)
+
+    @pytest.mark.parametrize("overlap", [2.4e-3, 3e-3])
+    def test_thin_but_sufficient_overlaps_are_measured_exactly(self, overlap):
+        """Just above min_overlap: accepted, with the exact half-thickness as depth."""
+        f = build_forest(WS, [wall(3.0, 3.0, 1.0), wall(3.0, 3.2 - overlap, 1.0), wall(0.5 - overlap, 5.0, 1.0)])
+        assert f.center_depth[1] == pytest.approx(overlap / 2, abs=1e-6)
+        assert f.center_depth[2] == pytest.approx(overlap / 2, abs=1e-6)
+
+    def test_obstacle_covering_the_workspace(self):
+        self._raises([Squircle((5, 5), 30.0, 30.0)], "covers-workspace", (0,))
+
+
+class TestDropped:
+    def test_outside_and_contained_obstacles_are_dropped(self):
+        big = wall(3.0, 3.0, 2.0, 0.6)
+        obs = [Squircle((20.0, 5.0), 1.0, 1.0), big, Squircle((3.2, 3.0), 0.3, 0.3, 0.0, 0.0), wall(6.0, 6.0, 1.0)]
+        f = build_forest(WS, obs)
+        assert f.source_index == (1, 3)
+        assert dict(f.dropped) == {0: "entirely outside the workspace", 2: "contained in obstacle 1"}
+        assert f.obstacles == (big, obs[3])
+        check_invariants(f)
+
+    def test_identical_obstacles_keep_the_first(self):
+        a = wall(3.0, 3.0, 1.0)
+        f = build_forest(WS, [a, a])
+        assert f.source_index == (0,) and f.dropped == ((1, "contained in obstacle 0"),)
+
+    def test_type_errors(self):
+        with pytest.raises(TypeError, match=r"obstacles\[1\]"):
+            build_forest(WS, [wall(3, 3, 1), {"center": [0, 0]}])
+
+
+# ---------------------------------------------------------------------- random worlds
+@pytest.fixture(scope="module")
+def random_worlds():
+    return [random_forest_world(seed) for seed in range(50)]
+
+
+class TestRandomWorlds:
+    def test_fifty_random_worlds_satisfy_the_invariants(self, random_worlds):
+        for w in random_worlds:
+            f = w.forest(0.0)
+            assert len(f) == 12 and f.dropped == ()
+            check_invariants(f, max_depth=4 + 1)
+            # worldgen's promises: clear overlaps, clear gaps, walls on the boundary, a deep tree
+            nonroot = [i for i in range(len(f)) if f.parent[i] != NO_PARENT]
+            assert min(f.center_depth[nonroot]) >= MIN_OVERLAP - 1e-6
+            off = f.distances[f.distances > 0]
+            assert off.size == 0 or off.min() >= GAP - 1e-6
+            assert WORKSPACE in f.parent
+            assert f.max_depth == 4
+
+    def test_random_worlds_overlaps_seen_independently(self, random_worlds):
+        for w in random_worlds[:10]:
+            check_geometry(w.forest(0.0))
+
+    def test_regions_and_start_are_valid(self, random_worlds):
+        for w in random_worlds[:10]:
+            w.validate()
+            assert w.name.startswith("random12_seed")
+            assert list(w.regions) == ["r1", "r2", "r3", "r4"]
+            assert w.task == "F r1 & F r2 & F r3 & F r4"
+
+    def test_generation_is_deterministic(self, random_worlds):
+        assert random_forest_world(7).to_dict() == random_worlds[7].to_dict()
+        assert random_forest_world(8).to_dict() != random_worlds[7].to_dict()
+
+    @pytest.mark.parametrize("n", [3, 20])
+    def test_sizes(self, n):
+        w = random_forest_world(100 + n, n_obstacles=n)
+        f = w.forest(0.0)
+        assert len(w.obstacles) == n
+        check_invariants(f, max_depth=5)
+        assert f.max_depth == min(4, n) if n >= 4 else f.max_depth <= n
+
+    def test_free_points(self, random_worlds):
+        w = random_worlds[0]
+        rng = np.random.default_rng(0)
+        pts = random_free_points(w, 200, rng, margin=0.1)
+        assert pts.shape == (200, 2)
+        assert np.all(-w.workspace.distance(pts) >= 0.1 - 1e-9)
+        for o in w.obstacles:
+            assert np.all(o.distance(pts) >= 0.1 - 1e-9)
+        again = random_free_points(w, 200, np.random.default_rng(0), margin=0.1)
+        assert np.array_equal(pts, again)
+
+    def test_build_time_for_twenty_obstacles(self):
+        w = random_forest_world(1, n_obstacles=20)
+        t0 = time.perf_counter()
+        build_forest(w.workspace, w.obstacles)
+        assert time.perf_counter() - t0 < 2.0  # typically ~0.2 s; generous for loaded CI machines
+
+
+@pytest.mark.slow
+def test_fifty_obstacles():
+    t0 = time.perf_counter()
+    w = random_forest_world(0, n_obstacles=50)
+    generated = time.perf_counter() - t0
+    assert (w.workspace.width, w.workspace.height) == (10.0, 10.0)
+    t0 = time.perf_counter()
+    f = build_forest(w.workspace, w.obstacles)
+    assert time.perf_counter() - t0 < 5.0
+    assert generated < 20.0
+    check_invariants(f, max_depth=5)
+    check_geometry(f, samples=128)

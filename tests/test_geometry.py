@@ -1,0 +1,214 @@
+"""Guarantees of navigation.geometry.Squircle: signs, exact derivatives, rays, distances, inflation."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from navigation.errors import PointsError, WorldError
+from navigation.geometry import Squircle
+
+SHAPES = [
+    Squircle((0.0, 0.0), 2.0, 1.0, 0.0, 0.0),  # ellipse
+    Squircle((1.0, -0.5), 1.2, 0.2, 0.7, 0.99),  # thin rotated wall
+    Squircle((-2.0, 3.0), 0.8, 0.8, -1.1, 0.5),
+    Squircle((0.3, 0.4), 3.0, 1.5, 2.5, 0.9),
+    Squircle((5.0, 5.0), 0.4, 0.4, 0.0, 0.0),  # circle
+]
+IDS = ["ellipse", "wall", "s0.5", "s0.9", "circle"]
+
+
+def _scaled_boundary(sq: Squircle, factor: float, n: int = 200) -> np.ndarray:
+    """Points ``c + factor (b - c)`` for boundary points ``b`` (inside for factor < 1)."""
+    return sq.c + factor * (sq.boundary_points(n) - sq.c)
+
+
+def _random_points(sq: Squircle, rng: np.random.Generator, n: int) -> np.ndarray:
+    r = sq.bounding_radius
+    return sq.c + rng.uniform(-1.6 * r, 1.6 * r, size=(n, 2))
+
+
+@pytest.mark.parametrize("sq", SHAPES, ids=IDS)
+class TestBetaSign:
+    def test_negative_inside_positive_outside_zero_on_boundary(self, sq):
+        for f in (0.0, 0.2, 0.6, 0.95):
+            pts = _scaled_boundary(sq, f) if f > 0 else sq.c[None]
+            assert np.all(sq.beta(pts) < 0)
+        for f in (1.05, 1.5, 4.0):
+            assert np.all(sq.beta(_scaled_boundary(sq, f)) > 0)
+        assert np.max(np.abs(sq.beta(sq.boundary_points(300)))) < 1e-12
+
+    def test_value_at_centre_is_minus_one(self, sq):
+        assert sq.beta(sq.c) == pytest.approx(-1.0, abs=1e-15)
+
+
+@pytest.mark.parametrize("s", [0.0, 0.3, 0.9, 0.99])
+@pytest.mark.parametrize("theta", [0.0, 0.8, -2.2])
+class TestDerivatives:
+    """Analytic gradient and Hessian against central finite differences."""
+
+    def test_gradient_matches_finite_differences(self, s, theta):
+        sq = Squircle((0.4, -0.2), 1.6, 0.7, theta, s)
+        pts = _random_points(sq, np.random.default_rng(11), 60)
+        pts = pts[np.linalg.norm(pts - sq.c, axis=1) > 0.05]
+        h = 1e-6
+        fd = np.stack([(sq.beta(pts + h * e) - sq.beta(pts - h * e)) / (2 * h) for e in np.eye(2)], axis=1)
+        g = sq.gradient(pts)
+        scale = np.maximum(1.0, np.linalg.norm(g, axis=1, keepdims=True))
+        assert np.max(np.abs(g - fd) / scale) < 1e-7
+
+    def test_hessian_matches_finite_differences_of_gradient(self, s, theta):
+        sq = Squircle((0.4, -0.2), 1.6, 0.7, theta, s)
+        pts = _random_points(sq, np.random.default_rng(12), 60)
+        pts = pts[np.linalg.norm(pts - sq.c, axis=1) > 0.05]
+        h = 1e-5
+        fd = np.stack([(sq.gradient(pts + h * e) - sq.gradient(pts - h * e)) / (2 * h) for e in np.eye(2)], axis=2)
+        H = sq.hessian(pts)
+        assert H.shape == (len(pts), 2, 2)
+        assert np.allclose(H, np.swapaxes(H, 1, 2), atol=1e-12)
+        scale = np.maximum(1.0, np.abs(H).max(axis=(1, 2)))[:, None, None]
+        assert np.max(np.abs(H - fd) / scale) < 1e-5
+
+
+@pytest.mark.parametrize("sq", SHAPES, ids=IDS)
+class TestRayLength:
+    def test_rays_from_centre_land_on_boundary(self, sq):
+        ang = np.linspace(0.0, 2 * np.pi, 97)
+        d = np.stack((np.cos(ang), np.sin(ang)), axis=1)
+        r = sq.ray_length_from_center(d)
+        assert r.shape == (97,)
+        assert np.max(np.abs(sq.beta(sq.c + r[:, None] * d))) < 1e-12
+
+    def test_rays_from_off_centre_origins_land_on_boundary(self, sq):
+        rng = np.random.default_rng(5)
+        origins = _scaled_boundary(sq, 0.7, 16)[rng.permutation(16)[:6]]
+        ang = np.linspace(0.0, 2 * np.pi, 41)
+        d = np.stack((np.cos(ang), np.sin(ang)), axis=1)
+        for o in origins:
+            r = sq.ray_length(o, d)
+            assert np.all(r > 0)
+            assert np.max(np.abs(sq.beta(o + r[:, None] * d))) < 1e-12
+
+    def test_ray_from_centre_agrees_with_general_ray(self, sq):
+        d = np.array([[0.6, 0.8], [-1.0, 0.0], [0.0, -1.0]])
+        assert np.allclose(sq.ray_length(sq.c, d), sq.ray_length_from_center(d), atol=1e-12)
+
+    def test_origin_outside_is_rejected(self, sq):
+        with pytest.raises(ValueError, match="not strictly inside"):
+            sq.ray_length(sq.c + 3 * sq.bounding_radius, [1.0, 0.0])
+
+
+@pytest.mark.parametrize("sq", SHAPES, ids=IDS)
+def test_distance_matches_dense_boundary_sampling(sq):
+    """Signed distance against brute force over 20000 boundary points (error ~ h^2 / 8d)."""
+    rng = np.random.default_rng(7)
+    pts = np.concatenate([_random_points(sq, rng, 40), _scaled_boundary(sq, 0.5, 10), _scaled_boundary(sq, 1.2, 10)])
+    dense = sq.boundary_points(20000)
+    brute = np.sqrt(((pts[:, None, :] - dense[None]) ** 2).sum(-1)).min(axis=1)
+    brute = np.where(sq.beta(pts) < 0, -brute, brute)
+    d = sq.distance(pts)
+    # exact distance never exceeds the sampled one and is within the sampling error of it
+    assert np.all(np.abs(d) <= np.abs(brute) + 1e-12)
+    assert np.max(np.abs(d - brute)) < 1e-6
+    assert np.all(np.sign(d) == np.sign(brute))
+
+
+def test_distance_of_boundary_points_is_zero():
+    sq = SHAPES[1]
+    assert np.max(np.abs(sq.distance(sq.boundary_points(50)))) < 1e-9
+
+
+@pytest.mark.parametrize("sq", SHAPES, ids=IDS)
+@pytest.mark.parametrize("r", [0.05, 0.2])
+class TestGrow:
+    def test_grown_contains_the_r_neighbourhood(self, sq, r):
+        big = sq.grow(r)
+        b = sq.boundary_points(400)
+        n = sq.gradient(b)
+        offset = b + r * n / np.linalg.norm(n, axis=1, keepdims=True)  # exactly r outside
+        assert np.all(big.beta(offset) <= 1e-12)
+        assert np.all(big.distance(b) <= -r + 1e-9)
+        assert (big.center, big.theta, big.s) == (sq.center, sq.theta, sq.s)
+
+    def test_shrunk_lies_r_deep_inside(self, sq, r):
+        if 2 * r >= min(sq.width, sq.height):
+            with pytest.raises(ValueError):
+                sq.grow(-r)
+            return
+        small = sq.grow(-r)
+        assert np.all(sq.distance(small.boundary_points(400)) <= -r + 1e-9)
+
+
+def test_grow_zero_is_identity():
+    assert SHAPES[0].grow(0.0) is SHAPES[0]
+
+
+class TestShapes:
+    """Every point function takes (2,) or (N, 2) and returns the same kind."""
+
+    sq = SHAPES[1]
+
+    @pytest.mark.parametrize("name, tail", [("beta", ()), ("gradient", (2,)), ("hessian", (2, 2)),
+                                            ("distance", ())])
+    def test_single_and_batch(self, name, tail):
+        f = getattr(self.sq, name)
+        one = f(np.array([0.3, 0.9]))
+        many = f(np.array([[0.3, 0.9], [2.0, 1.0], [1.0, -0.5]]))
+        assert np.shape(one) == tail
+        assert many.shape == (3, *tail)
+        assert np.allclose(many[0], one)
+
+    def test_ray_length_shapes(self):
+        assert np.shape(self.sq.ray_length_from_center([1.0, 0.0])) == ()
+        assert self.sq.ray_length_from_center(np.eye(2)).shape == (2,)
+
+    @pytest.mark.parametrize("bad", [np.zeros(3), np.zeros((2, 3)), np.zeros((2, 2, 2)), [np.nan, 0.0]])
+    def test_bad_points_are_rejected_by_name(self, bad):
+        with pytest.raises(PointsError, match="`q`"):
+            self.sq.beta(bad)
+
+
+class TestSquircleErrors:
+    """Bad squircle fields raise WorldError naming the field."""
+
+    good = {"center": [1.0, 2.0], "width": 1.0, "height": 0.5}
+
+    @pytest.mark.parametrize("change, field", [
+        ({"width": None}, "obstacles[2].width"),
+        ({"width": -1.0}, "obstacles[2].width"),
+        ({"height": 0.0}, "obstacles[2].height"),
+        ({"width": "wide"}, "obstacles[2].width"),
+        ({"width": True}, "obstacles[2].width"),
+        ({"s": 1.0}, "obstacles[2].s"),
+        ({"s": -0.1}, "obstacles[2].s"),
+        ({"theta": math.nan}, "obstacles[2].theta"),
+        ({"height": math.inf}, "obstacles[2].height"),
+        ({"center": [1.0]}, "obstacles[2].center"),
+        ({"center": [1.0, math.nan]}, "obstacles[2].center"),
+        ({"center": "origin"}, "obstacles[2].center"),
+        ({"colour": "red"}, "obstacles[2].colour"),
+    ])
+    def test_field_is_named(self, change, field):
+        d = dict(self.good)
+        for k, v in change.items():
+            if v is None:
+                del d[k]
+            else:
+                d[k] = v
+        with pytest.raises(WorldError) as info:
+            Squircle.from_dict(d, "obstacles[2]")
+        assert info.value.field == field
+        head, _, leaf = field.rpartition(".")
+        assert str(info.value).startswith(head) and leaf in str(info.value)
+
+    def test_not_an_object(self):
+        with pytest.raises(WorldError) as info:
+            Squircle.from_dict([1, 2], "workspace")
+        assert info.value.field == "workspace"
+
+    def test_defaults_and_round_trip(self):
+        sq = Squircle.from_dict(self.good)
+        assert (sq.theta, sq.s) == (0.0, 0.99)
+        assert Squircle.from_dict(sq.to_dict()) == sq
