@@ -1,0 +1,47 @@
+"""Navigation core: squircles, forests of stars, the transformation chain and harmonic
+navigation functions (paper 001 eq. 1-2, 9-19), and gradient descent on them.
+
+Public entry points::
+
+    world = navigation.load_world("office")            # or a path to a world JSON file
+    nf = navigation.NavigationFunction(world, goal=(6.4, 3.3))
+    nf.value(q), nf.gradient(q), nf.hessian(q)         # q of shape (2,) or (N, 2)
+    navigation.descend(nf, start)                      # normalised-gradient descent
+
+Later layers own the oriented fields and the unicycle controller (issue 4), perception
+(``perception``), missions (``tamp``) and the bus (``service``).
+"""
+
+from .descent import DescentResult, descend, descend_many
+from .errors import (
+    ForestError,
+    HarmonicTampError,
+    NavigationError,
+    OutsideFreeSpaceError,
+    PointsError,
+    WorldError,
+)
+from .forest import Forest, build_forest
+from .geometry import Squircle
+from .potential import NavEval, NavigationFunction, NavParams
+from .world import World, load_world
+
+__all__ = [
+    "DescentResult",
+    "Forest",
+    "ForestError",
+    "HarmonicTampError",
+    "NavEval",
+    "NavParams",
+    "NavigationError",
+    "NavigationFunction",
+    "OutsideFreeSpaceError",
+    "PointsError",
+    "Squircle",
+    "World",
+    "WorldError",
+    "build_forest",
+    "descend",
+    "descend_many",
+    "load_world",
+]

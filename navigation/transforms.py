@@ -1,0 +1,264 @@
+"""The diffeomorphism chain forest -> star -> sphere -> point world (paper 001 eq. 1, 10-19).
+
+Each stage is a map ``f(q) = (1 - sigma(q)) q + sigma(q) T(q)`` (the form of eq. 12 and 19)
+built from *ray maps*: along every ray ``q = p + r u`` from a centre ``p`` the map moves the
+point to ``p + r' u`` with ``r'`` a function of ``r`` and ``u``. Such a map is a
+diffeomorphism wherever ``dr'/dr > 0`` (its Jacobian determinant is ``(r'/r) dr'/dr``), so
+each stage below is built with ``dr'/dr >= 1`` everywhere in free space — a guarantee by
+construction rather than "for lambda, xi large enough" (Lemma 2). Differences to the paper,
+chosen to keep the guarantees and the numerics finite:
+
+* **Switches with compact support.** The paper's switches ``sigma_i = gamma_G bar-beta_i /
+  (gamma_G bar-beta_i + lambda beta_i)`` are nonzero everywhere and their products of all
+  obstacle functions under/overflow (notes: the authors' code returns non-finite values at most
+  points). We use the C-infinity step ``eta`` of eq. (1) (Loizou 2017): each map differs from the
+  identity only in a *shell* of width ``h_i`` around its obstacle. Shells of one stage are
+  pairwise disjoint and avoid the goal, so the stage is the sum of independent displacements.
+  ``h_i`` plays the role of ``1/lambda``, ``1/xi`` and of the paper's geometric constants ``E_i``
+  (the paper requires ``O_i(2E_i)`` disjoint and away from the goal; we require the shells to be).
+* **Purging (eq. 13-19).** For a leaf ``O_l`` with parent ``O_p`` and common centre ``p``, let
+  ``R_l(u)``, ``R_p(u)`` be the exact ray lengths from ``p`` (eq. 15, solved exactly, not by the
+  piecewise matrices of eq. 16), ``t = r - R_p`` and ``e = R_l - R_p`` (how far the leaf
+  protrudes). The leaf is purged by ``T(q) = q - e u`` (its boundary lands on the parent's, as
+  ``v_i`` of eq. 17 does at ``beta_i = 0``) with switch
+  ``sigma = omega(e / t) (1 - eta((t - e) / h))`` where ``omega = eta``: ``sigma = 1`` on the
+  leaf boundary, ``0`` where the leaf does not protrude (``e <= 0``) or beyond the shell. Because
+  ``omega`` depends on ``e/t`` rather than on ``max(e, 0)`` the map is smooth in the interior up to
+  the corners where leaf and parent boundaries cross, and ``dr'/dr = 1 + e (omega' e/t^2 (1-eta)
+  + omega eta'/h) >= 1``. A leaf whose parent is the workspace boundary is purged the same way
+  from a centre outside the workspace, with ``R_p`` the distance to where the ray enters it.
+  All leaves of one depth are purged in one stage (eq. 14 applied level by level, deepest first).
+* **Star to sphere (eq. 10-12).** Root ``j`` (centre ``c_j``) uses ``T_j(q) = q + (rho_j - R_j(u)) u``
+  with ``rho_j < min_u R_j`` and switch ``1 - eta(t/h_j)``, ``t = r - R_j``; the workspace uses
+  ``rho_0 >= max_u R_0`` and ``t = R_0 - r``. Both give ``dr'/dr >= 1``; boundaries land exactly
+  on the circles of radius ``rho``.
+* **Sphere to point (eq. 1).** As in the navigation-math note, with ``eta_delta(x) = eta(x/delta)``
+  and one ``delta_j`` per disc; ``psi`` sends the outer circle to infinity.
+
+Every map works on :class:`~navigation._jet.Jet` pairs (forward-mode values, gradients and
+Hessians with respect to the original query point), so compositions carry exact derivatives.
+``map(points, order)`` evaluates one stage on its own and returns ``(y, J, H)`` with shapes
+``(N, 2)``, ``(N, 2, 2)`` (``J[n, i, j] = d y_i / d x_j``) and ``(N, 2, 2, 2)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._arrays import as_points
+from ._jet import Jet, smoothstep_coeffs
+from .geometry import beta_jet, pack, ray_length_center_jet, ray_length_jet  # noqa: F401 (beta_jet re-used by tests)
+
+__all__ = ["PurgeStage", "StarToSphere", "SphereToPoint", "Chain", "jets_to_arrays"]
+
+
+def _eta(j: Jet) -> Jet:
+    e, d1, d2 = smoothstep_coeffs(j.v, j.order)
+    return j.apply(e, d1, d2)
+
+
+def _polar(x: Jet, y: Jet, c: np.ndarray):
+    """Distance ``r`` and unit direction ``u`` of ``q - c`` (jets)."""
+    dx = x - c[:, 0]
+    dy = y - c[:, 1]
+    r = (dx.square() + dy.square()).sqrt()
+    inv = r.reciprocal()
+    return r, dx * inv, dy * inv
+
+
+def _pairs(x: Jet, y: Jet, rows: np.ndarray, margin: np.ndarray):
+    """Indices ``(point, obstacle)`` of points within ``margin`` of each squircle's bounding
+    rectangle (rows packed as in :func:`navigation.geometry.pack`): a superset of the points
+    within ``margin`` of the squircle, outside which a stage's displacement vanishes."""
+    dx = x.v[:, None] - rows[None, :, 0]
+    dy = y.v[:, None] - rows[None, :, 1]
+    lx = np.abs(dx * rows[:, 2] + dy * rows[:, 3])
+    ly = np.abs(dy * rows[:, 2] - dx * rows[:, 3])
+    return np.nonzero((lx < rows[:, 4] + margin) & (ly < rows[:, 5] + margin))
+
+
+def _scatter(x: Jet, y: Jet, n: np.ndarray, dx: Jet, dy: Jet) -> tuple[Jet, Jet]:
+    ax, ay = x.a.copy(), y.a.copy()
+    np.add.at(ax, n, dx.a)
+    np.add.at(ay, n, dy.a)
+    return Jet(ax), Jet(ay)
+
+
+def jets_to_arrays(x: Jet, y: Jet):
+    """Values ``(N, 2)``, Jacobians ``(N, 2, 2)`` and second derivatives ``(N, 2, 2, 2)``."""
+    val = np.stack((x.v, y.v), axis=1)
+    jac = hess = None
+    if x.order >= 1:
+        jac = np.stack((x.g, y.g), axis=1)
+    if x.order >= 2:
+        hess = np.stack((x.hessian(), y.hessian()), axis=1)
+    return val, jac, hess
+
+
+class _Stage:
+    """Common evaluation of one stage on plain points."""
+
+    name = "stage"
+
+    def apply(self, x: Jet, y: Jet) -> tuple[Jet, Jet]:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def __call__(self, points, order: int = 1):
+        """Evaluate this stage alone at ``points`` of its domain: ``(y, J, H)`` (see module doc)."""
+        pts, _ = as_points(points, "points")
+        x, y = Jet.variables(pts, order)
+        return jets_to_arrays(*self.apply(x, y))
+
+
+@dataclass(frozen=True, eq=False)
+class PurgeStage(_Stage):
+    """Purging of all leaves of one depth into their parents (eq. 13-19, see module doc).
+
+    Attributes (arrays over the ``L`` leaves of the stage)
+    ------------------------------------------------------
+    leaf, parent : (L, 7) packed squircles; for a workspace parent the packed workspace
+    parent_is_workspace : (L,) bool
+    centre : (L, 2) common centres ``p_i``
+    width : (L,) shell widths ``h_i`` (the stage is the identity farther than ``h_i`` from leaf i)
+    """
+
+    leaf: np.ndarray
+    parent: np.ndarray
+    parent_is_workspace: np.ndarray
+    centre: np.ndarray
+    width: np.ndarray
+    name: str = "purge"
+
+    def apply(self, x: Jet, y: Jet) -> tuple[Jet, Jet]:
+        n, k = _pairs(x, y, self.leaf, self.width * 1.0001)
+        if len(n) == 0:
+            return x, y
+        c = self.centre[k]
+        r, ux, uy = _polar(x[n], y[n], c)
+        m = len(n)
+        # one solve for the leaf's and the parent's ray lengths
+        both = ray_length_jet(np.concatenate((self.leaf[k], self.parent[k])), np.concatenate((c, c)),
+                              Jet(np.concatenate((ux.a, ux.a))), Jet(np.concatenate((uy.a, uy.a))),
+                              entry=np.concatenate((np.zeros(m, dtype=bool), self.parent_is_workspace[k])))
+        r_leaf, r_par = both[:m], both[m:]
+        t = r - r_par
+        e = r_leaf - r_par
+        sigma = _eta(e / t) * (1.0 - _eta((r - r_leaf) * (1.0 / self.width[k])))
+        shift = e * sigma
+        return _scatter(x, y, n, -(shift * ux), -(shift * uy))
+
+
+@dataclass(frozen=True, eq=False)
+class StarToSphere(_Stage):
+    """Star world to sphere world for the roots (eq. 10-12 with compact switches, module doc).
+
+    ``roots`` (R, 7) packed root squircles, ``rho`` (R,) sphere radii, shell ``width`` (R,).
+    The workspace's own sphere map is applied by :class:`SphereToPoint`, after the inner
+    spheres have collapsed to points (see there).
+    """
+
+    roots: np.ndarray
+    rho: np.ndarray
+    width: np.ndarray
+    name: str = "star_to_sphere"
+
+    def apply(self, x: Jet, y: Jet) -> tuple[Jet, Jet]:
+        if len(self.roots) == 0:
+            return x, y
+        n, k = _pairs(x, y, self.roots, self.width * 1.0001)
+        if len(n) == 0:
+            return x, y
+        p = self.roots[k]
+        r, ux, uy = _polar(x[n], y[n], p[:, :2])
+        big_r = ray_length_center_jet(p, ux, uy)
+        sw = 1.0 - _eta((r - big_r) * (1.0 / self.width[k]))
+        shift = (self.rho[k] - big_r) * sw
+        return _scatter(x, y, n, shift * ux, shift * uy)
+
+
+@dataclass(frozen=True, eq=False)
+class SphereToPoint(_Stage):
+    """Sphere world to the unbounded point world, eq. (1) and the navigation-math note.
+
+    1. ``collapse``: discs ``(centres (R, 2), rho (R,))`` collapse onto their centres within
+       ``delta`` (R,) of their boundary (``Phi_M->P~``);
+    2. ``outer``: the workspace squircle becomes the disc ``(c0, rho0)`` (its star-to-sphere map,
+       eq. 10-11 with ``T_0(q) = q + (rho0 - R_0(u)) u`` and switch ``1 - eta((R_0 - r)/width0)``);
+    3. ``psi``: the open disc goes onto the plane.
+
+    Step 2 comes after step 1 (the paper applies all sphere maps before the collapse): once the
+    inner obstacles are points, the workspace map only has to avoid its own centre, so its shell
+    can be thick (``width0`` ~ the workspace's inscribed radius) instead of squeezing the
+    rounding of the whole boundary into the gap between the boundary and the nearest obstacle.
+    The composition is still a diffeomorphism (each step is), and the points ``P_j`` are the
+    images of the centres.
+    """
+
+    centres: np.ndarray
+    rho: np.ndarray
+    delta: np.ndarray
+    workspace: np.ndarray
+    rho0: float
+    width0: float
+    name: str = "sphere_to_point"
+
+    @property
+    def c0(self) -> np.ndarray:
+        return self.workspace[:2]
+
+    def collapse(self, x: Jet, y: Jet) -> tuple[Jet, Jet]:
+        """``Phi_M->P~``: disc ``i`` collapses to its centre (identity beyond ``delta_i``)."""
+        if len(self.centres) == 0:
+            return x, y
+        d2 = (x.v[:, None] - self.centres[None, :, 0]) ** 2 + (y.v[:, None] - self.centres[None, :, 1]) ** 2
+        reach = self.rho + self.delta
+        n, k = np.nonzero(d2 < (reach * reach)[None, :])
+        if len(n) == 0:
+            return x, y
+        c = self.centres[k]
+        r, ux, uy = _polar(x[n], y[n], c)
+        z = (r - self.rho[k]) * (1.0 / self.delta[k])
+        eta = _eta(z)
+        s = z * (1.0 - eta) + eta  # s_delta(b) of Loizou (2017) with b = r - rho
+        shrink = (1.0 - s) * r  # move towards the centre by (1 - s) r
+        return _scatter(x, y, n, -(shrink * ux), -(shrink * uy))
+
+    def outer(self, x: Jet, y: Jet) -> tuple[Jet, Jet]:
+        """Workspace squircle onto the circle of radius ``rho0`` (``dr'/dr >= 1``)."""
+        w = self.workspace
+        d2 = (x.v - w[0]) ** 2 + (y.v - w[1]) ** 2
+        inner = min(w[4], w[5]) - self.width0  # every ray from the centre is >= min half extent
+        n0 = np.nonzero(d2 > inner * inner)[0]
+        if len(n0) == 0:
+            return x, y
+        p = np.broadcast_to(w, (len(n0), 7))
+        r, ux, uy = _polar(x[n0], y[n0], p[:, :2])
+        big_r = ray_length_center_jet(p, ux, uy)
+        sw = 1.0 - _eta((big_r - r) * (1.0 / self.width0))
+        shift = (self.rho0 - big_r) * sw
+        return _scatter(x, y, n0, shift * ux, shift * uy)
+
+    def psi(self, x: Jet, y: Jet) -> tuple[Jet, Jet]:
+        """``psi``: the outer circle of radius ``rho0`` goes to infinity."""
+        dx = x - self.c0[0]
+        dy = y - self.c0[1]
+        gain = self.rho0 / (self.rho0 - (dx.square() + dy.square()).sqrt())
+        return dx * gain + self.c0[0], dy * gain + self.c0[1]
+
+    def apply(self, x: Jet, y: Jet) -> tuple[Jet, Jet]:
+        return self.psi(*self.outer(*self.collapse(x, y)))
+
+
+@dataclass(frozen=True, eq=False)
+class Chain(_Stage):
+    """The composition ``Phi_M->P o Phi_S->M o Phi_F->S`` of eq. (9): purges, then the rest."""
+
+    stages: tuple
+    name: str = "chain"
+
+    def apply(self, x: Jet, y: Jet) -> tuple[Jet, Jet]:
+        for st in self.stages:
+            x, y = st.apply(x, y)
+        return x, y
