@@ -1,4 +1,4 @@
-"""Descent along the normalised negative gradient of a navigation function.
+r"""Descent along the normalised negative gradient of a navigation function.
 
 The holonomic use of eq. (9): from each start, follow the normalised negative gradient flow
 ``dq/ds = -n(q)``, ``n = grad phi_NF / |grad phi_NF|`` (only the direction is used, so saturation

@@ -44,7 +44,8 @@ forest only.
 These replace the paper's ``lambda``, ``xi`` (switch steepness: our ``1/h``) and ``E_i``
 (separation constants: our clearances); see :mod:`navigation.transforms` for why.
 
-Outside free space (inside an obstacle, on a boundary, outside the workspace) every evaluation
+Outside free space (inside an obstacle, on a boundary or within ``FREE_MARGIN`` of it, outside
+the workspace) every evaluation
 is defined and finite and flagged ``free = False``: ``value = mu``, ``gradient`` a unit vector
 pointing away from free space (so ``-gradient`` leads back to it, across the most violated
 boundary), ``hessian = 0``, ``potential = +inf``.
@@ -64,7 +65,11 @@ from .forest import WORKSPACE, Forest
 from .geometry import pack
 from .transforms import Chain, PurgeStage, SphereToPoint, StarToSphere, jets_to_arrays
 
-__all__ = ["NavParams", "NavEval", "NavigationFunction"]
+__all__ = ["NavParams", "NavEval", "NavigationFunction", "FREE_MARGIN"]
+
+#: Points whose obstacle function is within this of 0 (about 1e-12 m from a boundary, where the
+#: outer map's distance to infinity is below rounding) count as on the boundary, i.e. not free.
+FREE_MARGIN = 1e-12
 
 
 @dataclass(frozen=True, slots=True)
@@ -130,7 +135,10 @@ def _beta_values(p: np.ndarray, pts: np.ndarray) -> np.ndarray:
     y = (dy * p[:, 2] - dx * p[:, 3]) / p[:, 5]
     x2, y2 = x * x, y * y
     r2 = x2 + y2
-    return 0.5 * (r2 + np.sqrt(np.maximum(r2 * r2 - 4.0 * p[:, 6] ** 2 * x2 * y2, 0.0))) - 1.0
+    # beta + 1 = r2 (1 + sqrt(1 - 4 s^2 (x2/r2)(y2/r2))) / 2: no r2^2, so no overflow far away
+    safe = np.where(r2 > 0, r2, 1.0)
+    m = (x2 / safe) * (y2 / safe)
+    return 0.5 * r2 * (1.0 + np.sqrt(np.maximum(1.0 - 4.0 * p[:, 6] ** 2 * m, 0.0))) - 1.0
 
 
 class NavigationFunction:
@@ -282,9 +290,9 @@ class NavigationFunction:
         return restore(self._free(pts), single)
 
     def _free(self, pts: np.ndarray) -> np.ndarray:
-        free = _beta_values(self._ws, pts)[:, 0] < 0
+        free = _beta_values(self._ws, pts)[:, 0] < -FREE_MARGIN
         if len(self._obs):
-            free &= np.all(_beta_values(self._obs, pts) > 0, axis=1)
+            free &= np.all(_beta_values(self._obs, pts) > FREE_MARGIN, axis=1)
         return free
 
     def value(self, q) -> np.ndarray:
@@ -408,6 +416,14 @@ class NavigationFunction:
         out = np.empty((len(pts), 2))
         for k in np.unique(worst):
             sel = worst == k
+            # far outside, the outward radial direction is the answer and avoids overflow
+            far = np.linalg.norm(pts - np.array(sqs[k].center), axis=1) > 4.0 * sqs[k].bounding_radius
+            if k == 0 and np.any(sel & far):
+                d = pts[sel & far] - np.array(sqs[0].center)
+                out[sel & far] = d / np.linalg.norm(d, axis=1, keepdims=True)
+                sel = sel & ~far
+                if not np.any(sel):
+                    continue
             g = sqs[k].gradient(pts[sel])
             if k > 0:
                 g = -g  # inside an obstacle, free space lies along +grad beta: point the other way

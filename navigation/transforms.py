@@ -244,7 +244,9 @@ class SphereToPoint(_Stage):
         """``psi``: the outer circle of radius ``rho0`` goes to infinity."""
         dx = x - self.c0[0]
         dy = y - self.c0[1]
-        gain = self.rho0 / (self.rho0 - (dx.square() + dy.square()).sqrt())
+        gap = self.rho0 - (dx.square() + dy.square()).sqrt()
+        gap = Jet.where(gap.v > 0, gap, Jet.constant(np.finfo(float).tiny, gap.order, gap.v.shape))
+        gain = self.rho0 / gap
         return dx * gain + self.c0[0], dy * gain + self.c0[1]
 
     def apply(self, x: Jet, y: Jet) -> tuple[Jet, Jet]:
