@@ -13,7 +13,9 @@ chosen to keep the guarantees and the numerics finite:
   obstacle functions under/overflow (notes: the authors' code returns non-finite values at most
   points). We use the C-infinity step ``eta`` of eq. (1) (Loizou 2017): each map differs from the
   identity only in a *shell* of width ``h_i`` around its obstacle. Shells of one stage are
-  pairwise disjoint and avoid the goal, so the stage is the sum of independent displacements.
+  pairwise disjoint, so the stage is the sum of independent displacements. (The goal needs no
+  special care: every stage is a diffeomorphism of all of free space; the paper's ``gamma_G``
+  factor is not needed.)
   ``h_i`` plays the role of ``1/lambda``, ``1/xi`` and of the paper's geometric constants ``E_i``
   (the paper requires ``O_i(2E_i)`` disjoint and away from the goal; we require the shells to be).
 * **Purging (eq. 13-19).** For a leaf ``O_l`` with parent ``O_p`` and common centre ``p``, let
@@ -30,8 +32,9 @@ chosen to keep the guarantees and the numerics finite:
   All leaves of one depth are purged in one stage (eq. 14 applied level by level, deepest first).
 * **Star to sphere (eq. 10-12).** Root ``j`` (centre ``c_j``) uses ``T_j(q) = q + (rho_j - R_j(u)) u``
   with ``rho_j < min_u R_j`` and switch ``1 - eta(t/h_j)``, ``t = r - R_j``; the workspace uses
-  ``rho_0 >= max_u R_0`` and ``t = R_0 - r``. Both give ``dr'/dr >= 1``; boundaries land exactly
-  on the circles of radius ``rho``.
+  ``rho_0 >= max_u R_0`` and ``t = R_0 - r``, applied in :class:`SphereToPoint` after the inner
+  discs have collapsed (see there). Both give ``dr'/dr >= 1``; boundaries land exactly on the
+  circles of radius ``rho``.
 * **Sphere to point (eq. 1).** As in the navigation-math note, with ``eta_delta(x) = eta(x/delta)``
   and one ``delta_j`` per disc; ``psi`` sends the outer circle to infinity.
 
