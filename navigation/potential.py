@@ -54,7 +54,7 @@ boundary), ``hessian = 0``, ``potential = +inf``.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 

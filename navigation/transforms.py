@@ -52,7 +52,7 @@ import numpy as np
 
 from ._arrays import as_points
 from ._jet import Jet, smoothstep_coeffs
-from .geometry import beta_jet, pack, ray_length_center_jet, ray_length_jet  # noqa: F401 (beta_jet re-used by tests)
+from .geometry import ray_length_center_jet, ray_length_jet
 
 __all__ = ["PurgeStage", "StarToSphere", "SphereToPoint", "Chain", "jets_to_arrays"]
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 import pytest
@@ -21,3 +22,19 @@ def world_file(name: str) -> Path:
         if p.is_file():
             return p
     pytest.skip(f"example world {name}.json not found in {[str(d) for d in WORLD_DIRS]}")
+
+
+@functools.lru_cache(maxsize=None)
+def shared_world(name: str):
+    """The example world ``name``, loaded once per test session."""
+    import navigation
+
+    return navigation.load_world(world_file(name))
+
+
+@functools.lru_cache(maxsize=None)
+def random_world(seed: int):
+    """``tests.worldgen.random_forest_world(seed)``, generated once per test session."""
+    from .worldgen import random_forest_world
+
+    return random_forest_world(seed)

@@ -27,16 +27,14 @@ worlds run with ``-m slow`` and are marked as expected failures until the condit
 
 from __future__ import annotations
 
-import functools
 import time
 
 import numpy as np
 import pytest
 
-import navigation
 from navigation import NavigationFunction, descend, descend_many
 
-from .conftest import world_file
+from .conftest import shared_world
 from .worldgen import random_forest_world, random_free_points
 
 SHARED_WORLDS = ("simple", "office", "cluttered20")
@@ -46,11 +44,6 @@ SEGMENT_SAMPLES = 20
 MAX_SADDLES = 2  # per world and goal
 GRAD_ZERO = 1e-6  # |grad phi_NF| / mu (1/m) below which a stall counts as a critical point
 PERTURBATION = 1e-3  # m
-
-
-@functools.lru_cache(maxsize=None)
-def shared_world(name: str):
-    return navigation.load_world(world_file(name))
 
 
 def _segments_free(nf: NavigationFunction, path: np.ndarray) -> np.ndarray:

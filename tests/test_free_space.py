@@ -31,23 +31,13 @@ from navigation import (
     build_forest,
 )
 
-from .conftest import world_file
+from .conftest import random_world, shared_world
 from .worldgen import random_forest_world, random_free_points
 
 SHARED_WORLDS = ("simple", "office", "cluttered20")
 RANDOM_SEEDS = tuple(range(10))
 SLOW_RANDOM_SEEDS = tuple(range(50))
 GRID = 150
-
-
-@functools.lru_cache(maxsize=None)
-def shared_world(name: str):
-    return navigation.load_world(world_file(name))
-
-
-@functools.lru_cache(maxsize=None)
-def random_world(seed: int):
-    return random_forest_world(seed)
 
 
 @functools.lru_cache(maxsize=None)

@@ -30,16 +30,14 @@ inside the workspace boundary (the steep part of the field).
 
 from __future__ import annotations
 
-import functools
 
 import numpy as np
 import pytest
 
-import navigation
 from navigation import NavigationFunction
 
-from .conftest import world_file
-from .worldgen import random_forest_world, random_free_points
+from .conftest import random_world as _random, shared_world as _shared
+from .worldgen import random_free_points
 
 SHARED_WORLDS = ("simple", "office", "cluttered20")
 RANDOM_SEEDS = tuple(range(10))
@@ -51,16 +49,6 @@ N_UNIFORM = 200
 
 
 # ---------------------------------------------------------------------- helpers
-@functools.lru_cache(maxsize=None)
-def _shared(name: str):
-    return navigation.load_world(world_file(name))
-
-
-@functools.lru_cache(maxsize=None)
-def _random(seed: int):
-    return random_forest_world(seed)
-
-
 def _goals(world, n: int = 3) -> list[tuple[float, float]]:
     return [r.center for r in list(world.regions.values())[:n]]
 
