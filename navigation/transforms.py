@@ -233,15 +233,18 @@ class SphereToPoint(_Stage):
         w = self.workspace
         d2 = (x.v - w[0]) ** 2 + (y.v - w[1]) ** 2
         inner = min(w[4], w[5]) - self.width0  # every ray from the centre is >= min half extent
-        n0 = np.nonzero(d2 > inner * inner)[0]
-        if len(n0) == 0:
+        sel = d2 > inner * inner
+        if not np.any(sel):
             return x, y
-        p = np.broadcast_to(w, (len(n0), 7))
-        r, ux, uy = _polar(x[n0], y[n0], p[:, :2])
-        big_r = ray_length_center_jet(p, ux, uy)
+        every = bool(np.all(sel))
+        xs, ys = (x, y) if every else (x[sel], y[sel])
+        r, ux, uy = _polar(xs, ys, w[None, :2])
+        big_r = ray_length_center_jet(w, ux, uy)
         sw = 1.0 - _eta((big_r - r) * (1.0 / self.width0))
         shift = (self.rho0 - big_r) * sw
-        return _scatter(x, y, n0, shift * ux, shift * uy)
+        if every:  # the common case in the thick shell: no gather/scatter
+            return x + shift * ux, y + shift * uy
+        return _scatter(x, y, np.nonzero(sel)[0], shift * ux, shift * uy)
 
     def psi(self, x: Jet, y: Jet) -> tuple[Jet, Jet]:
         """``psi``: the outer circle of radius ``rho0`` goes to infinity."""
