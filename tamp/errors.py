@@ -1,0 +1,109 @@
+"""Errors of the mission layer (LTL, automata, plans), under the product's one root.
+
+Every class derives from :class:`navigation.errors.TampError` (and so from
+:class:`~navigation.errors.HarmonicTampError`) and from the matching builtin, so callers can
+catch either. Each error type is distinct so the service can answer with a precise code
+(FORMATS.md bus contract: ``parse_error``, ``unknown_region``, ``unsatisfiable``,
+``invalid_request``).
+"""
+
+from __future__ import annotations
+
+from navigation.errors import TampError
+
+__all__ = [
+    "TampError",
+    "LtlSyntaxError",
+    "UnknownRegionError",
+    "UnsatisfiableError",
+    "HoaError",
+    "NoPlanError",
+    "InvalidRequestError",
+]
+
+
+class LtlSyntaxError(TampError, SyntaxError):
+    """A formula that does not parse.
+
+    Attributes
+    ----------
+    text : str
+        The formula as given.
+    position : int
+        0-based character offset of the problem in ``text``.
+    reason : str
+        What is wrong there, without the caret picture.
+
+    ``str(err)`` shows the reason, the formula and a caret under the offending column.
+    """
+
+    def __init__(self, reason: str, text: str, position: int):
+        self.reason = reason
+        self.text = text
+        self.position = int(position)
+        caret = " " * max(self.position, 0) + "^"
+        super().__init__(f"{reason} at column {self.position + 1}\n  {text}\n  {caret}")
+
+    def __str__(self) -> str:  # SyntaxError.__str__ would print only the first argument
+        return self.args[0]
+
+
+class UnknownRegionError(TampError, ValueError):
+    """A formula names atomic propositions that are not regions of the world.
+
+    Attributes
+    ----------
+    names : tuple of str
+        The unknown names, sorted.
+    known : tuple of str
+        The names that would have been accepted.
+    """
+
+    def __init__(self, names, known=()):
+        self.names = tuple(sorted(names))
+        self.known = tuple(sorted(known))
+        super().__init__(
+            f"unknown region name(s) {', '.join(map(repr, self.names))}; "
+            f"known regions: {', '.join(self.known) or '(none)'}"
+        )
+
+
+class UnsatisfiableError(TampError, ValueError):
+    """The formula's language is empty: no behaviour at all satisfies it.
+
+    Attributes
+    ----------
+    formula : str
+    """
+
+    def __init__(self, formula: str, detail: str = ""):
+        self.formula = str(formula)
+        msg = f"the mission {self.formula!r} is unsatisfiable: no infinite run satisfies it"
+        super().__init__(msg + (f" ({detail})" if detail else ""))
+
+
+class HoaError(TampError, ValueError):
+    """HOA text that cannot be read; the message names the line and the problem."""
+
+    def __init__(self, message: str, line: int | None = None):
+        self.line = line
+        super().__init__(f"line {line}: {message}" if line is not None else message)
+
+
+class NoPlanError(TampError):
+    """The mission has no accepting lasso in the current navigation map.
+
+    Attributes
+    ----------
+    blocked : tuple
+        Transitions of the navigation map that are missing or removed and that the plan would
+        need (pairs of region names), as far as they could be identified; may be empty.
+    """
+
+    def __init__(self, message: str, blocked=()):
+        self.blocked = tuple(blocked)
+        super().__init__(message)
+
+
+class InvalidRequestError(TampError, ValueError):
+    """A mission request that is malformed (bad mode, bad fields)."""

@@ -1,0 +1,37 @@
+"""Linear temporal logic for missions: syntax, Büchi automata, HOA v1 (paper 001 section 4.1.1).
+
+Public names
+------------
+``parse(text)`` / ``str(formula)``
+    FORMATS.md syntax to :class:`Formula` and back (:mod:`tamp.ltl.syntax`).
+``to_buchi(formula)``
+    Pure-Python translation to a state-based Büchi automaton :class:`Buchi`
+    (:mod:`tamp.ltl.translate`).
+``to_hoa(buchi)`` / ``from_hoa(text)``
+    HOA v1 output and input (:mod:`tamp.ltl.hoa`).
+``evaluate(formula, prefix, cycle)`` / ``accepts(buchi, prefix, cycle)``
+    Exact semantics on ultimately periodic words ``u v^omega`` (:mod:`tamp.ltl.semantics`).
+
+``python -m tamp.ltl "FORMULA"`` prints the automaton in HOA (FORMATS.md command-line contract).
+"""
+
+from .automaton import Buchi, Edge
+from .bdd import Bdd
+from .formula import Formula
+from .syntax import parse, to_string
+from .translate import to_buchi
+
+__all__ = ["Formula", "parse", "to_string", "to_buchi", "Buchi", "Edge", "Bdd"]
+
+try:  # pieces delivered in parallel; exported once present
+    from .hoa import from_hoa, to_hoa  # noqa: F401
+
+    __all__ += ["to_hoa", "from_hoa"]
+except ImportError:  # pragma: no cover
+    pass
+try:
+    from .semantics import accepts, evaluate  # noqa: F401
+
+    __all__ += ["evaluate", "accepts"]
+except ImportError:  # pragma: no cover
+    pass
