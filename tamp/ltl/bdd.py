@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 
-__all__ = ["Bdd", "cube", "valuation_mask"]
+__all__ = ["Bdd", "cube", "from_minterms", "valuation_mask"]
 
 _TERMINAL_VAR = 1 << 30
 # Node table: node 0 is false, node 1 is true.
@@ -261,3 +261,26 @@ def valuation_mask(true_aps: Iterable[str], aps: Sequence[str]) -> int:
 
 Bdd.true = Bdd(1)
 Bdd.false = Bdd(0)
+
+
+def from_minterms(letters: Iterable[int], nvars: int) -> Bdd:
+    """The guard true exactly at the valuations ``letters`` (masks over ``nvars`` APs).
+
+    Built by Shannon expansion of the truth table (variable 0 on top), so it costs
+    ``O(2^nvars)``; meant for the small alphabets of missions (``nvars <= 12``).
+    """
+    size = 1 << nvars
+    table = bytearray(size)
+    for m in letters:
+        if not 0 <= m < size:
+            raise ValueError(f"letter {m} is not a valuation of {nvars} APs")
+        table[m] = 1
+
+    def build(offset: int, stride: int, var: int) -> int:
+        if var == nvars:
+            return 1 if table[offset] else 0
+        lo = build(offset, stride * 2, var + 1)
+        hi = build(offset + stride, stride * 2, var + 1)
+        return _mk(var, lo, hi)
+
+    return Bdd(build(0, 1, 0))
