@@ -29,6 +29,8 @@ __all__ = [
     "simplify",
     "nnf",
     "implies",
+    "negate",
+    "sort_key",
     "mk_and",
     "mk_or",
     "mk_not_ap",
@@ -48,7 +50,7 @@ def _key(f: Formula):
     return (f.size, str(f))
 
 
-_sort_key = lru_cache(maxsize=None)(_key)
+sort_key = lru_cache(maxsize=None)(_key)
 
 
 @lru_cache(maxsize=None)
@@ -180,13 +182,13 @@ def _nary(op: str, items) -> Formula:
     if op == "&":
         for x in keep:
             for y in keep:
-                if x is not y and implies(x, _negate(y)):
+                if x is not y and implies(x, negate(y)):
                     return FALSE
     if not keep:
         return unit
     if len(keep) == 1:
         return keep[0]
-    keep.sort(key=_sort_key)
+    keep.sort(key=sort_key)
     return Formula(op, tuple(keep))
 
 
@@ -308,7 +310,8 @@ def _nnf(f: Formula, neg: bool) -> Formula:
     raise ValueError(f"unknown operator {op!r}")  # pragma: no cover
 
 
-def _negate(f: Formula) -> Formula:
+def negate(f: Formula) -> Formula:
+    """NNF of ``!f`` (simplified)."""
     return _nnf(f, True)
 
 

@@ -38,12 +38,13 @@ unsatisfiable formula gives a one-state automaton with no edges and no accepting
 from __future__ import annotations
 
 from collections import deque
+from functools import lru_cache
 from collections.abc import Sequence
 
 from .automaton import Buchi, Edge
 from .bdd import Bdd, from_minterms
 from .formula import FALSE, TRUE, Formula
-from .rewrite import is_cosafe, is_safe, mk_and, simplify
+from .rewrite import implies, is_cosafe, is_safe, negate, simplify, sort_key
 from .syntax import FormulaLike, parse
 
 __all__ = ["to_buchi", "EXPLICIT_ALPHABET_MAX_APS"]
@@ -113,11 +114,67 @@ class _Tableau:
                 g = g1 & g2
                 if g.is_false:
                     continue
-                n = mk_and(n1, n2)
+                n = _state_and(n1, n2)
                 if n is FALSE:
                     continue
                 out.append((g, n, p1 | p2))
         return out
+
+
+@lru_cache(maxsize=None)
+def _has_eventuality(f: Formula) -> bool:
+    return f.op in ("U", "F") or any(_has_eventuality(a) for a in f.args)
+
+
+def _state_and(*parts: Formula) -> Formula:
+    """Conjunction of obligations for a tableau state.
+
+    Unlike :func:`~tamp.ltl.rewrite.mk_and` it never hides a pending eventuality: an
+    obligation implied by another one is dropped only if it contains no ``U``/``F`` or if the
+    other one is ``G(...)`` with it as a conjunct (whose expansion expands it, with its
+    promise). Dropping e.g. ``F a`` next to ``X F a`` would lose the promise of ``F a`` and
+    accept runs that postpone it forever.
+    """
+    flat: list[Formula] = []
+    stack = list(parts)
+    while stack:
+        x = stack.pop()
+        if x.op == "&":
+            stack.extend(x.args)
+        elif x is FALSE:
+            return FALSE
+        elif x is not TRUE:
+            flat.append(x)
+    uniq = list(dict.fromkeys(flat))
+    if len(uniq) <= 1:
+        return uniq[0] if uniq else TRUE
+    present = set(uniq)
+    keep = []
+    for x in uniq:
+        if x.op == "!" and x.args[0] in present:
+            return FALSE
+        redundant = False
+        for y in uniq:
+            if y is x:
+                continue
+            if y.op == "G" and (y.args[0] is x or (y.args[0].op == "&" and x in y.args[0].args)):
+                redundant = True
+            elif not _has_eventuality(x) and implies(y, x) and not (
+                implies(x, y) and not _has_eventuality(y) and sort_key(y) > sort_key(x)
+            ):
+                redundant = True
+            if redundant:
+                break
+        if not redundant:
+            keep.append(x)
+    for i, x in enumerate(keep):
+        for y in keep[i + 1:]:
+            if implies(x, negate(y)):
+                return FALSE
+    if len(keep) == 1:
+        return keep[0]
+    keep.sort(key=sort_key)
+    return Formula("&", tuple(keep))
 
 
 def _reduce_terms(terms: list[_Term]) -> list[_Term]:
