@@ -218,7 +218,7 @@ def _unquote(s: str) -> str:
 # ============================================================================================
 _KNOWN_HEADERS = {"HOA", "States", "Start", "AP", "Alias", "Acceptance", "acc-name", "tool",
                   "name", "properties", "controllable-AP"}
-_ONCE = {"States", "AP", "Acceptance", "name", "tool", "acc-name"}
+_ONCE = {"States", "AP", "Acceptance", "name"}
 _UNSUPPORTED_ACC = (
     "only (generalized) Büchi acceptance is supported: a positive combination of Inf(i) "
     "such as 'Inf(0)&Inf(1)', or 't' / 'f'"
