@@ -241,8 +241,6 @@ def test_syntax_error_types():
     assert isinstance(info.value, TampError)
 
 
-@pytest.mark.xfail(raises=AttributeError, strict=True,
-                   reason="tamp/ltl/syntax.py _tokenize: a non-ASCII letter crashes the name regex")
 def test_non_ascii_letter_is_a_syntax_error():
     with pytest.raises(LtlSyntaxError) as info:
         parse("a & \u00e9t\u00e9")

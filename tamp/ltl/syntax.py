@@ -52,7 +52,7 @@ def _tokenize(text: str) -> list[tuple[str, str, int]]:
         if m is None or m.end() == pos:
             ch = text[pos]
             if ch.isalpha() or ch == "_":
-                word = re.match(r"[A-Za-z0-9_]+", text[pos:]).group(0)
+                word = re.match(r"\w+", text[pos:]).group(0)
                 raise LtlSyntaxError(
                     f"invalid name {word!r}: region names are lower-case letters, digits and "
                     "'_' starting with a letter; temporal operators are X F G U R W M",
