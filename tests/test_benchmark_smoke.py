@@ -31,3 +31,18 @@ def test_benchmark_quick_writes_results(tmp_path, capsys):
     printed = capsys.readouterr()
     assert printed.out.strip() == table.strip()
     assert "[bench]" in printed.err
+
+
+def test_ltl_benchmark_quick_writes_results(tmp_path, capsys):
+    from benchmarks import ltl as ltl_bench
+
+    out = tmp_path / "results"
+    assert ltl_bench.main(["--quick", "--out", str(out)]) == 0
+    data = json.loads((out / "ltl.json").read_text())
+    assert data["benchmark"] == "ltl" and data["quick"] is True
+    assert len(data["targets"]) == 3 and set(data["pass"]) == set(data["targets"])
+    assert all(isinstance(v, bool) for v in data["pass"].values())
+    table = (out / "ltl.md").read_text()
+    assert "| office mission |" in table
+    assert table.count("PASS") + table.count("FAIL") >= 3
+    assert capsys.readouterr().out.strip() == table.strip()
