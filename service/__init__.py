@@ -4,6 +4,7 @@ This package will own ``ServiceNode`` (the Zenoh session and the Rerun stream of
 contract in FORMATS.md), the unicycle and lidar simulator used by ``tamp-service demo``, and
 the ``tamp-service`` command line.
 
-Not implemented yet: it is delivered by a later issue (see the Status section of the README).
-Until then the main job is ``harmonic-tamp-nav`` (``navigation.render``).
+The simulator is in :mod:`service.sim` (``docs/simulator.md``); the bus adapter and the CLI
+are not implemented yet: they are delivered by a later issue (see the Status section of the
+README). Until then the main job is ``harmonic-tamp-nav`` (``navigation.render``).
 """
