@@ -8,7 +8,8 @@ Public entry points::
     nf.value(q), nf.gradient(q), nf.hessian(q)         # q of shape (2,) or (N, 2)
     navigation.descend(nf, start)                      # normalised-gradient descent
 
-Later layers own the oriented fields and the unicycle controller (issue 4), perception
+``navigation.OrientedField(nf, heading)`` is the oriented field of eq. 20-23 (arrival with a
+chosen heading). Later layers own the unicycle controller (issue 4), perception
 (``perception``), missions (``tamp``) and the bus (``service``).
 """
 
@@ -23,6 +24,7 @@ from .errors import (
 )
 from .forest import Forest, build_forest
 from .geometry import Squircle
+from .oriented import OrientedEval, OrientedField
 from .potential import NavEval, NavigationFunction, NavParams
 from .world import World, load_world
 
@@ -35,6 +37,8 @@ __all__ = [
     "NavParams",
     "NavigationError",
     "NavigationFunction",
+    "OrientedEval",
+    "OrientedField",
     "OutsideFreeSpaceError",
     "PointsError",
     "Squircle",

@@ -1,0 +1,296 @@
+"""Oriented harmonic fields (paper 001 section 4.1.2, Definition 3, eq. 20-23).
+
+Goal: a field ``Upsilon(q)`` whose integral curves reach the goal ``q_G`` arriving along the
+desired heading ``theta_G``, that equals a collision-avoiding descent field on every boundary,
+and that has no attractor but the goal (Lemma 3).
+
+What we implement, and why it differs from eq. 20-22
+----------------------------------------------------
+Eq. 20-22 rotate ``-grad phi_NF`` by angles built from ``sgn(.)`` terms and a switch
+``s_d(phi_NF)``. Taken literally the rotation jumps wherever ``delta_theta`` changes sign (which
+happens everywhere near the goal, where ``-grad phi_NF`` points at ``q_G``); interpolating the
+two end rotations smoothly along the shorter arc instead leaves a cut where the dipole
+direction opposes the descent direction, and on worlds with obstacles that cut can be
+*attracting*: we measured integral curves that chatter across it and stop (``s_d ~ 0.5``,
+opposite unit vectors average to zero) on the ``simple`` world. A rotated gradient field has no
+reason to keep the navigation function's guarantees.
+
+We keep the paper's intent (eq. 23: a field obtained from the harmonic potential that is
+dipole-like at the goal with axis ``theta_G`` and descends the navigation function elsewhere)
+but build it as the negated gradient of one scalar **oriented potential**, formed in the point
+world of eq. 2 where harmonic functions add::
+
+    phi_O(x) = ln|x - P_G|^2 - (1/K) sum_j ln|x - P_j|^2 + c (x - P_G).p / |x - P_G|^2
+    phi_ONF(q) = mu * logistic(phi_O(Phi(q)))           (eq. 9 applied to phi_O)
+    Upsilon(q) = -grad phi_ONF(q)                          (eq. 23 with Gamma folded in)
+
+``Phi`` is the navigation transformation (diffeomorphism free space -> point world), ``P_G`` the
+goal image, ``P_j`` the point obstacles. The last term is a harmonic **dipole** at ``P_G`` with
+axis ``p`` chosen from ``J``, the Jacobian of ``Phi`` at the goal, so that the *q-space*
+gradient flow enters along ``p_G = (cos theta_G, sin theta_G)`` (gradients do not push forward
+like tangent vectors: ``p ~ J^-T (2 M p_G / (p_G^T M p_G) - p_G)``, ``M = J^T J``; ``p = J p_G``
+up to scale when ``J`` is conformal), and strength ``c > 0``. Consequences, each a guarantee:
+
+* ``phi_O`` is harmonic in the point world away from ``P_G`` and the ``P_j`` (sum of harmonic
+  functions), so it has no local minimum or maximum there, only saddles; it tends to ``+inf`` at
+  every ``P_j`` and at infinity (the images of the obstacle and workspace boundaries, where the
+  logarithms dominate the bounded dipole term), so ``phi_ONF -> mu`` on every boundary and
+  ``-grad phi_ONF`` points away from every boundary (no collision);
+* near ``P_G`` the dipole ``c cos(angle)/|x - P_G|`` dominates the logarithm: ``phi_O -> -inf``
+  only from behind the goal (``(x - P_G).p < 0``), and the integral curves of the dipole are the
+  circles through ``P_G`` tangent to ``p``, all entering ``P_G`` from behind; with the axis
+  above, the q-space gradient curves enter ``q_G`` along ``p_G``: arrival with heading
+  ``theta_G``;
+* the field is the gradient of one smooth function: it is smooth everywhere in free space except
+  at the goal itself, and its Jacobian ``-Hess phi_ONF`` is exact (forward-mode jets through the
+  chain, analytic derivatives in the point world).
+
+``c`` (``strength``) sets how far from the goal the dipole takes over; the default is
+``DIPOLE_FRACTION = 0.3`` of the point-world distance from ``P_G`` to the nearest point
+obstacle (or, without obstacles, of ``|J| * `` the goal's clearance to the workspace boundary).
+
+The controller needs only the *direction* ``theta_gamma`` of ``Upsilon`` and its gradient; both
+are computed from ``phi_O`` (the logistic does not change directions), so they stay accurate
+where ``phi_ONF`` saturates next to boundaries.
+
+Degenerate points: the goal itself (``|q - q_G| < GOAL_TOLERANCE``) and critical points
+(``|grad phi_O| < GRADIENT_FLOOR``) are flagged ``degenerate``: field 0, direction ``theta_G``
+(goal) or 0, zero derivatives. Outside free space the navigation function's outside contract
+applies: the field is the unit vector back into free space (``-nf.gradient``), flagged
+``free = False``. Values are always finite.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from ._arrays import as_points, restore
+from ._jet import Jet, logistic
+from .errors import NavigationError, OutsideFreeSpaceError
+
+__all__ = ["OrientedField", "OrientedEval", "wrap_angle", "DIPOLE_FRACTION", "GRADIENT_FLOOR",
+           "GOAL_TOLERANCE"]
+
+DIPOLE_FRACTION = 0.3
+GRADIENT_FLOOR = 1e-300
+GOAL_TOLERANCE = 1e-9
+
+
+def _clearance(forest, q: np.ndarray) -> float:
+    """Exact distance from ``q`` to the nearest obstacle or to the workspace boundary."""
+    d = -float(forest.workspace.distance(q))
+    for o in forest.obstacles:
+        d = min(d, float(o.distance(q)))
+    return max(d, 1e-6)
+
+
+def wrap_angle(a):
+    """Wrap angles to ``(-pi, pi]`` (array or float)."""
+    w = np.remainder(np.asarray(a, dtype=float) + np.pi, 2.0 * np.pi) - np.pi
+    w = np.where(w == -np.pi, np.pi, w)
+    return w if np.ndim(w) else float(w)
+
+
+@dataclass(frozen=True)
+class OrientedEval:
+    """The oriented field at ``N`` points (unbatched arrays for a ``(2,)`` input).
+
+    Attributes
+    ----------
+    value : (N,)
+        ``phi_ONF`` in ``[0, mu]``.
+    field : (N, 2)
+        ``Upsilon = -grad phi_ONF`` (eq. 23).
+    jacobian : (N, 2, 2)
+        ``J[n, i, j] = d Upsilon_i / d q_j``.
+    angle : (N,)
+        Direction ``theta_gamma`` of the field, in ``(-pi, pi]``.
+    angle_gradient : (N, 2)
+        Exact ``grad theta_gamma`` (0 at degenerate points).
+    free : (N,) bool
+        Free-space flag of the navigation function.
+    degenerate : (N,) bool
+        Goal or critical point: the field vanishes and its direction is conventional.
+    """
+
+    value: np.ndarray
+    field: np.ndarray
+    jacobian: np.ndarray
+    angle: np.ndarray
+    angle_gradient: np.ndarray
+    free: np.ndarray
+    degenerate: np.ndarray
+
+
+class OrientedField:
+    """Oriented harmonic field to the goal pose ``(nf.goal, heading)`` (see the module doc).
+
+    Parameters
+    ----------
+    nf : NavigationFunction
+        Navigation function whose goal is the goal position (its forest, chain and ``K``,
+        ``mu`` are reused; nothing is rebuilt).
+    heading : float
+        Desired arrival heading ``theta_G`` (radians).
+    strength : float, optional
+        Dipole strength ``c`` in point-world units; default from :data:`DIPOLE_FRACTION`.
+
+    Raises
+    ------
+    NavigationError
+        Non-finite heading or non-positive strength.
+
+    Examples
+    --------
+    >>> import navigation
+    >>> nf = navigation.NavigationFunction(navigation.load_world("simple"), goal=(1.0, 1.0))
+    >>> field = OrientedField(nf, heading=0.0)
+    >>> field.field([[0.5, 0.5]]).shape
+    (1, 2)
+    """
+
+    def __init__(self, nf, heading: float, *, strength: float | None = None):
+        heading = float(heading)
+        if not math.isfinite(heading):
+            raise NavigationError(f"heading must be finite, got {heading}")
+        self.nf = nf
+        self.heading = wrap_angle(heading)
+        self.goal = np.asarray(nf.goal, dtype=float).reshape(2)
+        self.mu = float(nf.params.mu)
+        self._inv_k = 1.0 / float(nf.params.K)
+        self._points = np.asarray(nf.point_obstacles, dtype=float).reshape(-1, 2)
+        self._pg = np.asarray(nf.goal_image, dtype=float).reshape(2)
+        # Linear normalisation of the point world at the goal: x' = A (x - P_G) with
+        # A = (J J^T)^(-1/2), so that A J (the Jacobian of q -> x' at the goal) is a rotation.
+        _, jac, _ = nf.transform(self.goal[None], order=1)
+        J = jac[0]
+        w, V = np.linalg.eigh(J @ J.T)
+        A = (V / np.sqrt(w)) @ V.T
+        self._A = A
+        self._points = (self._points - self._pg) @ A.T
+        axis = A @ J @ np.array([math.cos(self.heading), math.sin(self.heading)])
+        self._axis = axis / np.linalg.norm(axis)
+        if strength is None:
+            strength = DIPOLE_FRACTION * _clearance(nf.forest, self.goal)
+        strength = float(strength)
+        if not (math.isfinite(strength) and strength > 0):
+            raise NavigationError(f"strength must be a positive finite number, got {strength}")
+        self.strength = strength
+
+    def __repr__(self) -> str:
+        return (f"OrientedField(goal={self.goal.tolist()}, heading={self.heading:.4f}, "
+                f"strength={self.strength:.4g})")
+
+    # ------------------------------------------------------------------ public queries
+    def field(self, q) -> np.ndarray:
+        """``Upsilon(q)``, shape ``(2,)`` or ``(N, 2)``."""
+        pts, single = as_points(q, "q")
+        return restore(self._evaluate(pts).field, single)
+
+    def jacobian(self, q) -> np.ndarray:
+        """Exact Jacobian of ``Upsilon``, shape ``(2, 2)`` or ``(N, 2, 2)``."""
+        pts, single = as_points(q, "q")
+        return restore(self._evaluate(pts).jacobian, single)
+
+    def direction(self, q):
+        """``(theta_gamma, grad theta_gamma)``: the field's direction and its exact gradient."""
+        pts, single = as_points(q, "q")
+        ev = self._evaluate(pts)
+        return restore(ev.angle, single), restore(ev.angle_gradient, single)
+
+    def evaluate(self, q) -> OrientedEval:
+        """Everything at once (see :class:`OrientedEval`); unbatched for ``(2,)`` input."""
+        pts, single = as_points(q, "q")
+        ev = self._evaluate(pts)
+        if not single:
+            return ev
+        return OrientedEval(*(getattr(ev, f.name)[0] for f in fields(OrientedEval)))
+
+    # ------------------------------------------------------------------ evaluation
+    def _potential_jet(self, x: Jet, y: Jet) -> Jet:
+        """Jet of ``phi_O`` at normalised point-world coordinates ``x' = (x, y)`` (goal at 0)."""
+        rx, ry = x.v, y.v
+        d = rx * rx + ry * ry
+        inv = 1.0 / d
+        inv2, inv3 = inv * inv, inv * inv * inv
+        # sink ln |x'|^2
+        f = np.log(d)
+        fx, fy = 2 * rx * inv, 2 * ry * inv
+        fxx = 2 * inv - 4 * rx * rx * inv2
+        fxy = -4 * rx * ry * inv2
+        fyy = 2 * inv - 4 * ry * ry * inv2
+        # dipole c (x'.p)/|x'|^2
+        c = self.strength
+        ax, ay = self._axis
+        n = rx * ax + ry * ay
+        f = f + c * n * inv
+        fx = fx + c * (ax * inv - 2 * n * rx * inv2)
+        fy = fy + c * (ay * inv - 2 * n * ry * inv2)
+        fxx = fxx + c * (-4 * ax * rx * inv2 - 2 * n * inv2 + 8 * n * rx * rx * inv3)
+        fxy = fxy + c * (-2 * (ax * ry + ay * rx) * inv2 + 8 * n * rx * ry * inv3)
+        fyy = fyy + c * (-4 * ay * ry * inv2 - 2 * n * inv2 + 8 * n * ry * ry * inv3)
+        # point obstacles -(1/K) sum ln |x' - P'_j|^2
+        if len(self._points):
+            k = self._inv_k
+            dx = rx[:, None] - self._points[None, :, 0]
+            dy = ry[:, None] - self._points[None, :, 1]
+            d2 = dx * dx + dy * dy
+            iv = 1.0 / d2
+            iv2 = iv * iv
+            f = f - k * np.log(d2).sum(1)
+            fx = fx - k * (2 * dx * iv).sum(1)
+            fy = fy - k * (2 * dy * iv).sum(1)
+            fxx = fxx - k * (2 * iv - 4 * dx * dx * iv2).sum(1)
+            fxy = fxy - k * (-4 * dx * dy * iv2).sum(1)
+            fyy = fyy - k * (2 * iv - 4 * dy * dy * iv2).sum(1)
+        return Jet.compose2(f, fx, fy, fxx, fxy, fyy, x, y)
+
+    def _evaluate(self, pts: np.ndarray) -> OrientedEval:
+        n = len(pts)
+        mu = self.mu
+        value = np.full(n, mu)
+        field = np.zeros((n, 2))
+        jac = np.zeros((n, 2, 2))
+        angle = np.zeros(n)
+        grad_angle = np.zeros((n, 2))
+        free = np.asarray(self.nf.is_free(pts), dtype=bool).reshape(n)
+        at_goal = np.linalg.norm(pts - self.goal, axis=1) < GOAL_TOLERANCE
+        degenerate = at_goal & free
+        angle[degenerate] = self.heading
+        value[degenerate] = 0.0
+        idx = np.nonzero(free & ~at_goal)[0]
+        if len(idx):
+            x, y = self.nf.chain.apply(*Jet.variables(pts[idx], 2))
+            a = self._A
+            cx, cy = x - self._pg[0], y - self._pg[1]
+            phi = self._potential_jet(cx * a[0, 0] + cy * a[0, 1], cx * a[1, 0] + cy * a[1, 1])
+            v = phi.v
+            g = phi.g  # (M, 2) gradient of phi_O w.r.t. q
+            H = phi.hessian()  # (M, 2, 2)
+            s = logistic(v)
+            sc = s * logistic(-v)  # logistic'
+            scc = sc * (logistic(-v) - s)  # logistic''
+            value[idx] = mu * s
+            # Upsilon = -mu logistic'(phi) grad phi ; J = -mu (logistic'' g g^T + logistic' H)
+            field[idx] = -mu * sc[:, None] * g
+            jac[idx] = -mu * (scc[:, None, None] * g[:, :, None] * g[:, None, :] + sc[:, None, None] * H)
+            a = -g
+            m2 = np.einsum("ni,ni->n", a, a)
+            flat = ~(m2 > GRADIENT_FLOOR)
+            safe = np.where(flat, 1.0, m2)
+            angle[idx] = np.where(flat, 0.0, np.arctan2(a[:, 1], a[:, 0]))
+            # d atan2(a_y, a_x)/dq = (a_x grad a_y - a_y grad a_x)/|a|^2 with grad a = -H
+            ga = (-a[:, 0, None] * H[:, 1, :] + a[:, 1, None] * H[:, 0, :]) / safe[:, None]
+            grad_angle[idx] = np.where(flat[:, None], 0.0, ga)
+            degenerate[idx] = flat
+        out = np.nonzero(~free)[0]
+        if len(out):
+            back = -np.asarray(self.nf.evaluate(pts[out], order=1).gradient)
+            field[out] = back
+            angle[out] = np.arctan2(back[:, 1], back[:, 0])
+        if not (np.isfinite(field).all() and np.isfinite(jac).all() and np.isfinite(grad_angle).all()):
+            raise OutsideFreeSpaceError("oriented field is not finite here")  # pragma: no cover
+        return OrientedEval(value, field, jac, wrap_angle(angle), grad_angle, free, degenerate)

@@ -1,0 +1,125 @@
+"""Oriented harmonic fields (paper 001 eq. 20-23, built as a dipolar potential; see
+navigation.oriented): exact Jacobians, boundary behaviour, finite values everywhere, and
+integral curves that reach the goal along the desired heading."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import navigation
+from navigation.errors import NavigationError
+from navigation.oriented import OrientedField, wrap_angle
+
+from .conftest import random_world, shared_world
+from .worldgen import random_free_points
+
+WORLDS = [("simple", None), ("cluttered20", None)] + [(None, s) for s in range(5)]
+
+
+def _world(name, seed):
+    return shared_world(name) if name else random_world(seed)
+
+
+def _field(world, rng, heading=None):
+    goal = random_free_points(world, 1, rng, margin=0.2)[0]
+    nf = navigation.NavigationFunction(world, goal=goal)
+    return OrientedField(nf, heading=rng.uniform(-np.pi, np.pi) if heading is None else heading)
+
+
+@pytest.mark.parametrize("name,seed", WORLDS)
+def test_jacobian_matches_finite_differences(name, seed):
+    world = _world(name, seed)
+    rng = np.random.default_rng(11 if seed is None else seed)
+    field = _field(world, rng)
+    pts = random_free_points(world, 300, rng, margin=0.02)
+    ev = field.evaluate(pts)
+    # away from the direction cut (Delta = pi) where the field is only one-sided smooth
+    h = 1e-6
+    fd = np.stack([(field.field(pts + e) - field.field(pts - e)) / (2 * h) for e in np.eye(2) * h], axis=2)
+    scale = np.abs(ev.jacobian).max(axis=(1, 2)) + 1e-12
+    err = np.abs(fd - ev.jacobian).max(axis=(1, 2)) / scale
+    smooth = ~ev.degenerate & (err < 1e-3)  # a point within h of the cut jumps by O(1)
+    assert smooth.mean() > 0.97, f"too many points on the cut: {1 - smooth.mean():.3f}"
+    assert np.median(err) < 1e-6
+    assert np.all(err[smooth] < 1e-4), f"max relative error {err[smooth].max():.2e}"
+
+
+@pytest.mark.parametrize("name,seed", WORLDS)
+def test_finite_everywhere_and_descent_on_boundaries(name, seed):
+    world = _world(name, seed)
+    rng = np.random.default_rng(5)
+    field = _field(world, rng)
+    ws = world.workspace
+    lo = np.array(ws.center) - max(ws.width, ws.height) / 2 - 0.2
+    grid = rng.uniform(lo, lo + max(ws.width, ws.height) + 0.4, size=(2000, 2))
+    ev = field.evaluate(grid)
+    assert np.isfinite(ev.field).all() and np.isfinite(ev.jacobian).all()
+    assert np.isfinite(ev.angle).all() and np.isfinite(ev.angle_gradient).all()
+    # outside free space: the navigation function's contract (unit vector back into free space)
+    nev = field.nf.evaluate(grid[~ev.free], order=1)
+    np.testing.assert_allclose(ev.field[~ev.free], -nev.gradient, atol=1e-12)
+    # next to boundaries the oriented value tends to mu and the field points into free space
+    near = random_free_points(world, 400, rng)
+    phi = field.nf.value(near)
+    close = near[phi > 0.999]
+    ev_near = field.evaluate(close)
+    assert np.all(ev_near.value > 0.99 * field.mu)
+    nf_dir = -field.nf.gradient(close)
+    cos = np.einsum("ni,ni->n", ev_near.field, nf_dir) / (
+        np.linalg.norm(ev_near.field, axis=1) * np.linalg.norm(nf_dir, axis=1))
+    assert np.all(cos > 0.9), f"min cos to -grad phi_NF next to boundaries {cos.min():.3f}"
+
+
+def _follow(field, start, max_steps=20000):
+    """Integral curve of the normalised field: unit-speed Euler steps of at most 1 cm, halved
+    whenever the direction reverses (a step that jumped across the bottom of a valley), so the
+    curve follows valleys along walls instead of bouncing. Returns (end point, last direction)."""
+    q = np.array(start, dtype=float)
+    h, prev, last = 0.01, None, None
+    for _ in range(max_steps):
+        ev = field.evaluate(q)
+        if ev.degenerate:
+            break
+        d = np.array([np.cos(ev.angle), np.sin(ev.angle)])
+        h = 0.5 * h if prev is not None and d @ prev < 0 else min(0.01, 1.2 * h)
+        q = q + min(h, 0.3 * np.linalg.norm(q - field.goal)) * d
+        assert field.nf.is_free(q), f"left free space from {start}"
+        prev = last = d
+        if np.linalg.norm(q - field.goal) < 1e-4:
+            break
+    return q, last
+
+
+def test_integral_curves_arrive_with_the_desired_heading():
+    """Integral curves of Upsilon from random starts on ``simple`` reach the goal and arrive
+    along the desired heading (last step, 1e-4 m from the goal)."""
+    world = shared_world("simple")
+    rng = np.random.default_rng(1)
+    for _ in range(3):
+        goal = random_free_points(world, 1, rng, margin=0.2)[0]
+        nf = navigation.NavigationFunction(world, goal=goal)
+        field = OrientedField(nf, heading=rng.uniform(-np.pi, np.pi))
+        for start in random_free_points(world, 6, rng, margin=0.05):
+            q, last = _follow(field, start)
+            assert np.linalg.norm(q - field.goal) < 1e-4, f"{field}: from {start} stopped at {q}"
+            arrival = np.arctan2(last[1], last[0])
+            assert abs(wrap_angle(arrival - field.heading)) < 0.1, f"{field}: from {start} arrived at {arrival}"
+
+
+def test_bad_parameters_are_refused():
+    nf = navigation.NavigationFunction(shared_world("simple"), goal=(1.0, 1.0))
+    with pytest.raises(NavigationError, match="heading"):
+        OrientedField(nf, heading=float("nan"))
+    with pytest.raises(NavigationError, match="strength"):
+        OrientedField(nf, heading=0.0, strength=-1.0)
+
+
+def test_shapes_follow_the_input():
+    nf = navigation.NavigationFunction(shared_world("simple"), goal=(1.0, 1.0))
+    f = OrientedField(nf, heading=0.3)
+    assert f.field([0.5, 0.2]).shape == (2,)
+    assert f.jacobian([0.5, 0.2]).shape == (2, 2)
+    assert f.field(np.zeros((0, 2))).shape == (0, 2)
+    ev = f.evaluate([1.0, 1.0])
+    assert ev.degenerate and ev.angle == pytest.approx(0.3)
