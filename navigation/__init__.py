@@ -9,10 +9,12 @@ Public entry points::
     navigation.descend(nf, start)                      # normalised-gradient descent
 
 ``navigation.OrientedField(nf, heading)`` is the oriented field of eq. 20-23 (arrival with a
-chosen heading). Later layers own the unicycle controller (issue 4), perception
+chosen heading); ``navigation.track`` / ``track_waypoints`` are the unicycle controller of
+eq. 24-25. Later layers own perception
 (``perception``), missions (``tamp``) and the bus (``service``).
 """
 
+from .control import Command, ControllerConfig, track, track_waypoints
 from .descent import DescentResult, descend, descend_many
 from .errors import (
     ForestError,
@@ -29,6 +31,8 @@ from .potential import NavEval, NavigationFunction, NavParams
 from .world import World, load_world
 
 __all__ = [
+    "Command",
+    "ControllerConfig",
     "DescentResult",
     "Forest",
     "ForestError",
@@ -48,4 +52,6 @@ __all__ = [
     "descend",
     "descend_many",
     "load_world",
+    "track",
+    "track_waypoints",
 ]

