@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from collections.abc import Collection, Iterable
 
+from ._graph import reachable, strongly_connected_components
 from .automaton import Buchi, Edge
 from .bdd import Bdd
 
@@ -57,64 +58,14 @@ def _succ_graph(buchi: Buchi, letters) -> list[list[int]]:
 
 
 def _reachable(succ: list[list[int]], sources: Iterable[int]) -> set[int]:
-    seen = set(sources)
-    stack = list(seen)
-    while stack:
-        q = stack.pop()
-        for r in succ[q]:
-            if r not in seen:
-                seen.add(r)
-                stack.append(r)
-    return seen
+    return reachable(sources, succ.__getitem__)
 
 
 def _sccs(succ: list[list[int]], nodes: Iterable[int]) -> list[list[int]]:
-    """Strongly connected components (iterative Tarjan) of the subgraph induced by ``nodes``."""
+    """Strongly connected components of the subgraph induced by ``nodes``."""
     nodes = list(nodes)
     inside = set(nodes)
-    index: dict[int, int] = {}
-    low: dict[int, int] = {}
-    on: set[int] = set()
-    stack: list[int] = []
-    out: list[list[int]] = []
-    counter = 0
-    for root in nodes:
-        if root in index:
-            continue
-        work = [(root, 0)]
-        index[root] = low[root] = counter
-        counter += 1
-        stack.append(root)
-        on.add(root)
-        while work:
-            v, i = work[-1]
-            nbrs = [w for w in succ[v] if w in inside]
-            if i < len(nbrs):
-                work[-1] = (v, i + 1)
-                w = nbrs[i]
-                if w not in index:
-                    index[w] = low[w] = counter
-                    counter += 1
-                    stack.append(w)
-                    on.add(w)
-                    work.append((w, 0))
-                elif w in on:
-                    low[v] = min(low[v], index[w])
-            else:
-                work.pop()
-                if work:
-                    u = work[-1][0]
-                    low[u] = min(low[u], low[v])
-                if low[v] == index[v]:
-                    comp = []
-                    while True:
-                        w = stack.pop()
-                        on.discard(w)
-                        comp.append(w)
-                        if w == v:
-                            break
-                    out.append(comp)
-    return out
+    return list(strongly_connected_components(nodes, lambda v: [w for w in succ[v] if w in inside]))
 
 
 def live_states(buchi: Buchi, letters: Collection[int] | None = None) -> frozenset[int]:

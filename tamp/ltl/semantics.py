@@ -44,6 +44,7 @@ from __future__ import annotations
 import weakref
 from collections.abc import Iterable, Sequence
 
+from ._graph import strongly_connected_components
 from .automaton import Buchi
 from .formula import Formula
 from .syntax import FormulaLike, parse
@@ -299,49 +300,10 @@ def accepts(buchi: Buchi, prefix: Word, cycle: Word) -> bool:
         j = i + 1 if i + 1 < n else loop
         return [r * n + j for r in succ_state(q, masks[i])]
 
-    # Iterative Tarjan over the reachable product.
-    start = buchi.initial * n
-    index_of: dict[int, int] = {}
-    low: dict[int, int] = {}
-    on_stack: set[int] = set()
-    stack: list[int] = []
-    counter = 0
-    index_of[start] = low[start] = counter
-    counter += 1
-    stack.append(start)
-    on_stack.add(start)
-    work = [(start, iter(successors(start)))]
-    while work:
-        node, it = work[-1]
-        advanced = False
-        for w in it:
-            if w not in index_of:
-                index_of[w] = low[w] = counter
-                counter += 1
-                stack.append(w)
-                on_stack.add(w)
-                work.append((w, iter(successors(w))))
-                advanced = True
-                break
-            if w in on_stack and index_of[w] < low[node]:
-                low[node] = index_of[w]
-        if advanced:
-            continue
-        work.pop()
-        if work:
-            parent = work[-1][0]
-            if low[node] < low[parent]:
-                low[parent] = low[node]
-        if low[node] == index_of[node]:
-            # Pop the component rooted at ``node``.
-            component = []
-            while True:
-                w = stack.pop()
-                on_stack.discard(w)
-                component.append(w)
-                if w == node:
-                    break
-            if any(w // n in accepting for w in component):
-                if len(component) > 1 or node in successors(node):
-                    return True
+    # Strongly connected components of the reachable product (lazily; stop at the first
+    # non-trivial one that holds an accepting state).
+    for component in strongly_connected_components([buchi.initial * n], successors):
+        if any(w // n in accepting for w in component):
+            if len(component) > 1 or component[0] in successors(component[0]):
+                return True
     return False

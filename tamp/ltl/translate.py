@@ -41,6 +41,7 @@ from collections import deque
 from functools import lru_cache
 from collections.abc import Sequence
 
+from ._graph import strongly_connected_components
 from .automaton import Buchi, Edge
 from .bdd import Bdd, from_minterms
 from .formula import FALSE, TRUE, Formula
@@ -252,51 +253,11 @@ class _Nba:
 
 
 def _sccs(succ: list) -> list[int]:
-    """Component id of every node (iterative Tarjan); ``succ[q]`` iterable of successors."""
-    n = len(succ)
-    index = [-1] * n
-    low = [0] * n
-    onstack = [False] * n
-    comp = [-1] * n
-    stack: list[int] = []
-    counter = 0
-    ncomp = 0
-    for root in range(n):
-        if index[root] != -1:
-            continue
-        work = [(root, iter(succ[root]))]
-        index[root] = low[root] = counter
-        counter += 1
-        stack.append(root)
-        onstack[root] = True
-        while work:
-            v, it = work[-1]
-            advanced = False
-            for w in it:
-                if index[w] == -1:
-                    index[w] = low[w] = counter
-                    counter += 1
-                    stack.append(w)
-                    onstack[w] = True
-                    work.append((w, iter(succ[w])))
-                    advanced = True
-                    break
-                if onstack[w]:
-                    low[v] = min(low[v], index[w])
-            if advanced:
-                continue
-            work.pop()
-            if work:
-                u = work[-1][0]
-                low[u] = min(low[u], low[v])
-            if low[v] == index[v]:
-                while True:
-                    w = stack.pop()
-                    onstack[w] = False
-                    comp[w] = ncomp
-                    if w == v:
-                        break
-                ncomp += 1
+    """Component id of every node ``0..n-1``; ``succ[q]`` iterable of successors."""
+    comp = [-1] * len(succ)
+    for c, members in enumerate(strongly_connected_components(range(len(succ)), succ.__getitem__)):
+        for q in members:
+            comp[q] = c
     return comp
 
 
