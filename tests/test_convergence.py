@@ -17,12 +17,13 @@ be rare (at most 2 per world and goal), and descending again from the end point 
 fails, with the start, end point, reason and value reported.
 
 Known limitation (issue 2 is open): next to chained walls the field has creases (valleys as narrow
-as nanometres along wall faces, see docs/navigation.md "Known limitation") in which descent runs
-out of steps. Measured this session: simple 100 % of runs reach the goal, cluttered20 49/50, office
-about half, random worlds 86-100 % (276/300 over seeds 0..9). The default run therefore asserts the
-guarantee strictly on ``simple`` (a purged tree included); the other shared worlds and the random
-worlds run with ``-m slow`` and are marked as expected failures until the conditioning is fixed
-(they are not skipped: an unexpected pass is reported as XPASS).
+as micrometres along wall faces, see docs/navigation.md "Known limitation") in which descent runs
+out of steps. Measured with the stiff (implicit) descent steps, 100 starts per world and goal,
+5000 steps: simple 200/200, cluttered20 200/200, office 118/200, random worlds see
+docs/navigation.md. The guarantee is therefore asserted strictly on ``simple`` (default run) and
+``cluttered20`` (``-m slow``); office and the random worlds run with ``-m slow`` and are marked as
+expected failures until the conditioning is fixed (they are not skipped: an unexpected pass is
+reported as XPASS).
 """
 
 from __future__ import annotations
@@ -143,7 +144,7 @@ _KNOWN_CREASES = pytest.mark.xfail(reason=CREASES, strict=False)
 @pytest.mark.parametrize("name", [
     "simple",
     pytest.param("office", marks=[pytest.mark.slow, _KNOWN_CREASES]),
-    pytest.param("cluttered20", marks=[pytest.mark.slow, _KNOWN_CREASES]),
+    pytest.param("cluttered20", marks=pytest.mark.slow),
 ])
 @pytest.mark.parametrize("goal_index", (0, 1))
 def test_descent_reaches_goal_shared_world(name, goal_index):
