@@ -280,12 +280,12 @@ def _plan(rng: np.random.Generator, n: int, max_depth: int, wall_fraction: float
 
 
 def _attempt(rng: np.random.Generator, name: str, n: int, max_depth: int, size, n_regions: int,
-             wall_fraction: float) -> World:
+             wall_fraction: float, gap: float = GAP) -> World:
     W, H = size
     ws = Squircle((W / 2.0, H / 2.0), W, H, 0.0, 0.99)
-    placer = _Placer(ws, (W, H))
+    placer = _Placer(ws, (W, H), gap=gap)
     trees = _plan(rng, n, max_depth, wall_fraction)
-    margin = GAP + 0.2
+    margin = gap + 0.2
 
     def free_root(long: bool = False) -> bool:
         for _ in range(200):
@@ -352,7 +352,7 @@ def _attempt(rng: np.random.Generator, name: str, n: int, max_depth: int, size, 
 
 
 def random_forest_world(seed: int, n_obstacles: int = 12, max_depth: int = 4, size=None, n_regions: int = 4,
-                        wall_fraction: float = 0.3) -> World:
+                        wall_fraction: float = 0.3, gap: float = GAP) -> World:
     """A random world whose obstacles form a forest of stars (deterministic per ``seed``).
 
     Parameters
@@ -372,6 +372,10 @@ def random_forest_world(seed: int, n_obstacles: int = 12, max_depth: int = 4, si
         Regions ``r1 .. rn`` (radius 0.15 m); the task visits all of them.
     wall_fraction : float
         Share of the obstacles in trees attached to the workspace boundary.
+    gap : float
+        Clearance between distinct trees, between non-adjacent obstacles and from the workspace
+        boundary (default :data:`GAP`). A robot of radius ``r`` needs ``gap > 2 r`` for the
+        obstacles grown by ``r`` (its configuration space) to remain a forest.
 
     Raises
     ------
@@ -385,7 +389,7 @@ def random_forest_world(seed: int, n_obstacles: int = 12, max_depth: int = 4, si
     name = f"random{n_obstacles}_seed{seed}"
     for _ in range(50):
         try:
-            return _attempt(rng, name, n_obstacles, max_depth, size, n_regions, wall_fraction)
+            return _attempt(rng, name, n_obstacles, max_depth, size, n_regions, wall_fraction, gap)
         except (_Retry, WorldError):
             continue
     raise RuntimeError(f"could not generate a forest world with {n_obstacles} obstacles in {size[0]} x {size[1]} m")
