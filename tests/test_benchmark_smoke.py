@@ -46,3 +46,18 @@ def test_ltl_benchmark_quick_writes_results(tmp_path, capsys):
     assert "| office mission |" in table
     assert table.count("PASS") + table.count("FAIL") >= 3
     assert capsys.readouterr().out.strip() == table.strip()
+
+
+def test_control_benchmark_quick_writes_results(tmp_path, capsys):
+    from benchmarks import control as control_bench
+
+    out = tmp_path / "results"
+    assert control_bench.main(["--quick", "--out", str(out)]) == 0
+    data = json.loads((out / "control.json").read_text())
+    assert data["benchmark"] == "control" and data["quick"] is True
+    (row,) = data["worlds"]
+    assert row["world"] == "simple" and row["runs"] == 2 and row["collisions"] == 0
+    assert 0.0 <= row["success_rate"] <= 1.0 and row["step_median"] > 0.0
+    table = (out / "control.md").read_text()
+    assert "| simple | 4 |" in table
+    assert capsys.readouterr().out.strip() == table.strip()

@@ -1,0 +1,165 @@
+"""Closed-loop benchmark of the oriented field + unicycle controller in the simulator (issue 4).
+
+Run from the repository root::
+
+    python -m benchmarks.control [--quick] [--out benchmarks/results] [--starts 10] [--random 5]
+
+For each world (``simple``, ``office`` with all obstacles known, and random forest worlds from
+``tests.worldgen`` with ``gap=0.3`` so that they stay forests in the robot's configuration
+space) and each random goal pose, the robot starts from random free poses and is driven by
+:func:`navigation.track` on an :class:`navigation.OrientedField` built on the obstacles grown by
+the robot radius, in :class:`service.sim.Simulator` (dt = 0.1 s, noise-free), for at most
+120 simulated seconds. A run *reaches* the goal pose when it is within 0.05 m and 0.1 rad.
+
+Reported per world: success rate, collisions, minimum clearance (exact, robot disc to the true
+obstacles), mean path length and time to goal of the successful runs, and two oscillation
+measures: sign changes of the commanded turn rate per metre travelled (|omega| > 0.05 rad/s)
+and integrated absolute curvature ``sum |omega| dt`` over moving steps (rad). Also the median
+time of one controller step (field, Jacobian, command) with its target <= 2 ms.
+Results: ``<out>/control.json`` and ``<out>/control.md`` (also printed); progress on stderr.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import platform
+import statistics
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+import navigation
+from navigation.control import ControllerConfig, track
+from navigation.oriented import OrientedField, wrap_angle
+from service.sim import Simulator
+from tests.worldgen import random_forest_world, random_free_points
+
+__all__ = ["main", "run", "render_markdown", "STEP_TARGET"]
+
+STEP_TARGET = 2e-3
+POS_TOL, HEADING_TOL, MAX_TIME = 0.05, 0.1, 120.0
+
+
+def _log(msg: str) -> None:
+    print(f"[bench] {msg}", file=sys.stderr, flush=True)
+
+
+def _episode(world, field, start, cfg) -> dict:
+    sim = Simulator(world, seed=0, pose=start)
+    omegas, step_times = [], []
+    reached = False
+    for _ in range(int(MAX_TIME / sim.dt)):
+        x, y, th = sim.pose
+        if math.hypot(x - field.goal[0], y - field.goal[1]) < POS_TOL and abs(wrap_angle(th - field.heading)) < HEADING_TOL:
+            reached = True
+            break
+        t0 = time.perf_counter()
+        cmd = track((x, y, th), field, cfg)
+        step_times.append(time.perf_counter() - t0)
+        result = sim.step((cmd.v, cmd.omega))
+        omegas.append((cmd.v, cmd.omega))
+        if result.collision is not None:
+            break
+    m = sim.metrics
+    signs = [np.sign(w) for v, w in omegas if abs(w) > 0.05]
+    flips = sum(1 for a, b in zip(signs, signs[1:]) if a != b)
+    curvature = sum(abs(w) * sim.dt for v, w in omegas if v > 1e-3)
+    return {"reached": reached, "collisions": len(m.collisions), "min_clearance": float(m.min_clearance),
+            "distance": float(m.distance), "time": float(sim.time), "flips_per_m": flips / max(m.distance, 1e-9),
+            "curvature": float(curvature), "step_times": step_times}
+
+
+def _worlds(n_random: int):
+    yield "simple", navigation.load_world("simple")
+    yield "office", navigation.load_world("office")
+    for seed in range(n_random):
+        yield f"random12_seed{seed}", random_forest_world(seed, gap=0.3)
+
+
+def run(*, quick: bool = False, starts: int = 10, goals: int = 2, n_random: int = 5) -> dict:
+    if quick:
+        starts, goals, n_random = 2, 1, 0
+    rows = []
+    for name, world in _worlds(n_random):
+        if quick and name != "simple":
+            continue
+        rng = np.random.default_rng(0)
+        r = world.robot.radius
+        cfg = ControllerConfig.from_robot(world.robot)
+        eps, times = [], []
+        for g in range(goals):
+            goal = random_free_points(world, 1, rng, margin=r + 0.2)[0]
+            field = OrientedField(navigation.NavigationFunction(world, goal=goal, inflation=r),
+                                  heading=rng.uniform(-math.pi, math.pi))
+            for s in random_free_points(world, starts, rng, margin=r + 0.05):
+                e = _episode(world, field, (s[0], s[1], rng.uniform(-math.pi, math.pi)), cfg)
+                times += e.pop("step_times")
+                eps.append(e)
+        ok = [e for e in eps if e["reached"]]
+        row = {
+            "world": name, "n_obstacles": len(world.obstacles), "runs": len(eps), "reached": len(ok),
+            "success_rate": len(ok) / len(eps), "collisions": sum(e["collisions"] for e in eps),
+            "min_clearance": min(e["min_clearance"] for e in eps),
+            "mean_distance": statistics.fmean(e["distance"] for e in ok) if ok else None,
+            "mean_time": statistics.fmean(e["time"] for e in ok) if ok else None,
+            "flips_per_m": statistics.fmean(e["flips_per_m"] for e in eps),
+            "curvature": statistics.fmean(e["curvature"] for e in eps),
+            "step_median": statistics.median(times), "step_pass": statistics.median(times) <= STEP_TARGET,
+        }
+        _log(f"{name}: {row['reached']}/{row['runs']} reached, {row['collisions']} collisions")
+        rows.append(row)
+    return {"benchmark": "control", "quick": quick, "settings": {"starts": starts, "goals": goals, "random": n_random},
+            "tolerances": {"position": POS_TOL, "heading": HEADING_TOL, "max_time": MAX_TIME},
+            "step_target": STEP_TARGET, "worlds": rows,
+            "machine": {"python": platform.python_version(), "numpy": np.__version__, "platform": platform.platform(),
+                        "cpus": os.cpu_count()}}
+
+
+def _f(x, fmt: str) -> str:
+    return "-" if x is None else format(x, fmt)
+
+
+def render_markdown(result: dict) -> str:
+    lines = ["# Closed-loop controller benchmark", "",
+             f"`python -m benchmarks.control{' --quick' if result['quick'] else ''}` "
+             f"(Python {result['machine']['python']}, {result['machine']['cpus']} CPUs). Goal pose reached: "
+             f"within {POS_TOL} m and {HEADING_TOL} rad; dt = 0.1 s; obstacles grown by the robot radius.", "",
+             "| world | obstacles | reached | collisions | min clearance (m) | mean path (m) | mean time (s) "
+             "| turn-sign flips / m | integrated abs curvature (rad) | controller step (ms) | <= 2 ms |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|:---:|"]
+    for r in result["worlds"]:
+        lines.append(f"| {r['world']} | {r['n_obstacles']} | {r['reached']}/{r['runs']} | {r['collisions']} | "
+                     f"{r['min_clearance']:.4f} | {_f(r['mean_distance'], '.2f')} | {_f(r['mean_time'], '.1f')} | "
+                     f"{r['flips_per_m']:.2f} | {r['curvature']:.2f} | {r['step_median'] * 1e3:.2f} | "
+                     f"{'PASS' if r['step_pass'] else 'FAIL'} |")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.control", description=__doc__.split("\n\n")[0],
+                                     formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    parser.add_argument("--quick", action="store_true", help="simple world, two runs (smoke test)")
+    parser.add_argument("--out", type=Path, default=Path("benchmarks") / "results", help="directory of control.{json,md}")
+    parser.add_argument("--starts", type=int, default=10, help="start poses per goal")
+    parser.add_argument("--goals", type=int, default=2, help="goal poses per world")
+    parser.add_argument("--random", type=int, default=5, help="random worlds (seeds 0..N-1)")
+    args = parser.parse_args(argv)
+    if args.starts < 1 or args.goals < 1 or args.random < 0:
+        parser.error("--starts and --goals must be >= 1 and --random >= 0")
+    result = run(quick=args.quick, starts=args.starts, goals=args.goals, n_random=args.random)
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "control.json").write_text(json.dumps(result, indent=2))
+    table = render_markdown(result)
+    (args.out / "control.md").write_text(table)
+    print(table, end="")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
