@@ -22,12 +22,8 @@ Results: ``<out>/control.json`` and ``<out>/control.md`` (also printed); progres
 from __future__ import annotations
 
 import argparse
-import json
 import math
-import os
-import platform
 import statistics
-import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -38,6 +34,7 @@ import navigation
 from navigation.control import ControllerConfig, track
 from navigation.oriented import OrientedField, wrap_angle
 from service.sim import Simulator
+from benchmarks._common import log, machine_info, write_results
 from tests.worldgen import random_forest_world, random_free_points
 
 __all__ = ["main", "run", "render_markdown", "STEP_TARGET"]
@@ -45,9 +42,6 @@ __all__ = ["main", "run", "render_markdown", "STEP_TARGET"]
 STEP_TARGET = 2e-3
 POS_TOL, HEADING_TOL, MAX_TIME = 0.05, 0.1, 120.0
 
-
-def _log(msg: str) -> None:
-    print(f"[bench] {msg}", file=sys.stderr, flush=True)
 
 
 def _episode(world, field, start, cfg) -> dict:
@@ -112,13 +106,12 @@ def run(*, quick: bool = False, starts: int = 10, goals: int = 2, n_random: int 
             "curvature": statistics.fmean(e["curvature"] for e in eps),
             "step_median": statistics.median(times), "step_pass": statistics.median(times) <= STEP_TARGET,
         }
-        _log(f"{name}: {row['reached']}/{row['runs']} reached, {row['collisions']} collisions")
+        log(f"[bench] {name}: {row['reached']}/{row['runs']} reached, {row['collisions']} collisions")
         rows.append(row)
     return {"benchmark": "control", "quick": quick, "settings": {"starts": starts, "goals": goals, "random": n_random},
             "tolerances": {"position": POS_TOL, "heading": HEADING_TOL, "max_time": MAX_TIME},
             "step_target": STEP_TARGET, "worlds": rows,
-            "machine": {"python": platform.python_version(), "numpy": np.__version__, "platform": platform.platform(),
-                        "cpus": os.cpu_count()}}
+            "machine": machine_info()}
 
 
 def _f(x, fmt: str) -> str:
@@ -153,11 +146,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.starts < 1 or args.goals < 1 or args.random < 0:
         parser.error("--starts and --goals must be >= 1 and --random >= 0")
     result = run(quick=args.quick, starts=args.starts, goals=args.goals, n_random=args.random)
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "control.json").write_text(json.dumps(result, indent=2))
-    table = render_markdown(result)
-    (args.out / "control.md").write_text(table)
-    print(table, end="")
+    write_results(args.out, "control", result, render_markdown(result))
     return 0
 
 

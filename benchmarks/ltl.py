@@ -29,9 +29,7 @@ from __future__ import annotations
 
 import argparse
 import datetime as _dt
-import json
 import os
-import platform
 import random
 import statistics
 import subprocess
@@ -41,6 +39,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import navigation
+from benchmarks._common import log, machine_info, write_results
 from tamp import MissionPlanner
 from tamp.ltl import parse, to_buchi
 
@@ -68,9 +67,6 @@ TARGETS = {
 FULL = {"translate_repeats": 20, "plan_repeats": 20, "replan_repeats": 50}
 QUICK = {"translate_repeats": 2, "plan_repeats": 2, "replan_repeats": 5}
 
-
-def _log(msg: str) -> None:
-    print(msg, file=sys.stderr, flush=True)
 
 
 def _times(fn: Callable[[], object], repeats: int) -> tuple[float, float]:
@@ -112,7 +108,7 @@ def bench_translation(settings: dict, office_task: str) -> list[dict]:
                      "accepting": len(b.accepting), "size_target": size_target,
                      "size_pass": None if size_target is None else b.num_states <= size_target,
                      "first": cold, "median": median})
-        _log(f"[bench] translate {name}: {b.num_states} states, {b.num_edges} edges, "
+        log(f"[bench] translate {name}: {b.num_states} states, {b.num_edges} edges, "
              f"median {1e3 * median:.2f} ms, cold {1e3 * (cold or 0):.1f} ms")
     return rows
 
@@ -150,7 +146,7 @@ def bench_planning(settings: dict, world_name: str, seed: int = 0) -> dict:
         "replan_cycles_reused": reused, "replan_cycles_computed": computed,
         "initial_plan": plan.to_dict(),
     }
-    _log(f"[bench] {world_name}: product {n_states} states / {n_edges} edges, plan "
+    log(f"[bench] {world_name}: product {n_states} states / {n_edges} edges, plan "
          f"{1e3 * plan_t:.2f} ms, replan {1e3 * res['replan']:.2f} ms")
     return res
 
@@ -171,8 +167,7 @@ def run(*, quick: bool = False, world: str = "office") -> dict:
         "targets": {k: {"seconds": limit, "label": label} for k, (limit, label) in TARGETS.items()},
         "measured": measured,
         "pass": {k: bool(measured[k] <= TARGETS[k][0]) for k in TARGETS},
-        "machine": {"python": platform.python_version(), "platform": platform.platform(),
-                    "cpus": os.cpu_count()},
+        "machine": machine_info(),
         "units": "seconds",
         "translation": translation,
         "planning": planning,
@@ -249,12 +244,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--world", default="office", help="world whose mission and regions are planned")
     args = parser.parse_args(argv)
     result = run(quick=args.quick, world=args.world)
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "ltl.json").write_text(json.dumps(result, indent=2) + "\n")
-    table = render_markdown(result)
-    (args.out / "ltl.md").write_text(table)
-    _log(f"[bench] wrote {args.out / 'ltl.json'} and {args.out / 'ltl.md'}")
-    print(table)
+    write_results(args.out, "ltl", result, render_markdown(result))
     return 0
 
 

@@ -28,9 +28,6 @@ from __future__ import annotations
 
 import argparse
 import datetime as _dt
-import json
-import os
-import platform
 import statistics
 import sys
 import time
@@ -41,6 +38,7 @@ import numpy as np
 
 import navigation
 from navigation import NavigationFunction, build_forest
+from benchmarks._common import log, machine_info, verdict, write_results
 from tests.worldgen import random_forest_world, random_free_points
 
 __all__ = ["main", "run", "render_markdown", "TARGETS", "SIZES", "SHARED"]
@@ -63,9 +61,6 @@ TARGET_APPLIES_UP_TO = 25
 FULL = {"forest_repeats": 5, "construction_repeats": 50, "points": 200, "batch_repeats": 7, "grid_repeats": 7}
 QUICK = {"forest_repeats": 1, "construction_repeats": 3, "points": 10, "batch_repeats": 1, "grid_repeats": 1}
 
-
-def _log(msg: str) -> None:
-    print(msg, file=sys.stderr, flush=True)
 
 
 def _median_time(fn: Callable[[], object], repeats: int, warmup: int = 1) -> float:
@@ -136,16 +131,16 @@ def run(*, quick: bool = False, sizes: Sequence[int] = SIZES, shared: Sequence[s
     settings = QUICK if quick else FULL
     rows = []
     for name, source, make in _worlds(sizes, shared):
-        _log(f"[bench] {name}: generating / loading ({source})")
+        log(f"[bench] {name}: generating / loading ({source})")
         t0 = time.perf_counter()
         world = make()
-        _log(f"[bench] {name}: world ready in {time.perf_counter() - t0:.2f} s; measuring")
+        log(f"[bench] {name}: world ready in {time.perf_counter() - t0:.2f} s; measuring")
         row = {"world": name, "source": source, **bench_world(world, settings)}
         applies = row["n_obstacles"] <= TARGET_APPLIES_UP_TO
         row["target_applies"] = applies
         row["pass"] = {k: bool(row[k] <= limit) for k, (limit, _) in TARGETS.items()}
         rows.append(row)
-        _log(f"[bench] {name}: forest {1e3 * row['forest_build']:.1f} ms, construction "
+        log(f"[bench] {name}: forest {1e3 * row['forest_build']:.1f} ms, construction "
              f"{1e3 * row['construction']:.2f} ms, one point {1e3 * row['one_point']:.3f} ms, "
              f"10k batch {row['batch_10k']:.3f} s, grid {row['grid_200']:.3f} s")
     return {
@@ -155,16 +150,11 @@ def run(*, quick: bool = False, sizes: Sequence[int] = SIZES, shared: Sequence[s
         "settings": settings,
         "targets": {k: {"seconds": limit, "label": label, "obstacles": TARGET_OBSTACLES}
                     for k, (limit, label) in TARGETS.items()},
-        "machine": {"python": platform.python_version(), "numpy": np.__version__,
-                    "platform": platform.platform(), "cpus": os.cpu_count()},
+        "machine": machine_info(),
         "units": "seconds",
         "worlds": rows,
     }
 
-
-def _verdict(row: dict, key: str) -> str:
-    v = "PASS" if row["pass"][key] else "FAIL"
-    return v if row["target_applies"] else f"({v})"
 
 
 def render_markdown(result: dict) -> str:
@@ -185,10 +175,10 @@ def render_markdown(result: dict) -> str:
     for r in result["worlds"]:
         lines.append(
             f"| {r['world']} | {r['n_obstacles']} | {r['n_trees']} | {r['max_depth']} "
-            f"| {1e3 * r['forest_build']:.1f} | {1e3 * r['construction']:.2f} | {_verdict(r, 'construction')} "
-            f"| {1e3 * r['one_point']:.3f} | {_verdict(r, 'one_point')} "
-            f"| {r['batch_10k']:.3f} | {_verdict(r, 'batch_10k')} "
-            f"| {r['grid_200']:.3f} | {_verdict(r, 'grid_200')} |")
+            f"| {1e3 * r['forest_build']:.1f} | {1e3 * r['construction']:.2f} | {verdict(r, 'construction')} "
+            f"| {1e3 * r['one_point']:.3f} | {verdict(r, 'one_point')} "
+            f"| {r['batch_10k']:.3f} | {verdict(r, 'batch_10k')} "
+            f"| {r['grid_200']:.3f} | {verdict(r, 'grid_200')} |")
     lines += [
         "",
         f"Targets are specified for {TARGET_OBSTACLES} obstacles and apply to every row with at most "
@@ -216,12 +206,7 @@ def main(argv: Sequence[str] | None = None, *, sizes: Sequence[int] | None = Non
     sizes = tuple(args.sizes if sizes is None else sizes)
     shared = tuple(args.shared if shared is None else shared)
     result = run(quick=args.quick, sizes=sizes, shared=shared)
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "navigation.json").write_text(json.dumps(result, indent=2) + "\n")
-    table = render_markdown(result)
-    (args.out / "navigation.md").write_text(table)
-    _log(f"[bench] wrote {args.out / 'navigation.json'} and {args.out / 'navigation.md'}")
-    print(table)
+    write_results(args.out, "navigation", result, render_markdown(result))
     return 0
 
 

@@ -28,10 +28,7 @@ from __future__ import annotations
 
 import argparse
 import datetime as _dt
-import json
 import math
-import os
-import platform
 import statistics
 import sys
 import time
@@ -42,6 +39,7 @@ import numpy as np
 
 import navigation
 from service.sim import LidarConfig, Simulator, arc_pose
+from benchmarks._common import log, machine_info, verdict, write_results
 from tests.worldgen import random_forest_world, random_free_points
 
 __all__ = ["main", "run", "render_markdown", "TARGETS", "SHARED", "SIZES"]
@@ -57,9 +55,6 @@ TARGET_APPLIES_UP_TO = 25  #: rows with at most this many obstacles are held to 
 FULL = {"poses": 300, "steps": 300, "contacts": 150, "arcs": 2000}
 QUICK = {"poses": 5, "steps": 5, "contacts": 5, "arcs": 20}
 
-
-def _log(msg: str) -> None:
-    print(msg, file=sys.stderr, flush=True)
 
 
 def _timed(fn) -> tuple[float, object]:
@@ -134,12 +129,12 @@ def run(*, quick: bool = False, shared: Sequence[str] = SHARED, sizes: Sequence[
     settings = QUICK if quick else FULL
     rows = []
     for name, source, make in _worlds(shared, sizes):
-        _log(f"[bench] {name}: loading ({source}) and measuring")
+        log(f"[bench] {name}: loading ({source}) and measuring")
         row = {"world": name, "source": source, **bench_world(make(), settings)}
         row["target_applies"] = row["n_obstacles"] <= TARGET_APPLIES_UP_TO
         row["pass"] = {k: bool(row[k] <= limit) for k, (limit, _) in TARGETS.items()}
         rows.append(row)
-        _log(f"[bench] {name}: scan {1e3 * row['scan_360']:.3f} ms, free step {1e3 * row['step_free']:.3f} ms, "
+        log(f"[bench] {name}: scan {1e3 * row['scan_360']:.3f} ms, free step {1e3 * row['step_free']:.3f} ms, "
              f"contact step {1e3 * row['step_contact']:.3f} ms, arc {1e6 * row['arc']:.2f} us")
     return {
         "benchmark": "sim",
@@ -148,17 +143,11 @@ def run(*, quick: bool = False, shared: Sequence[str] = SHARED, sizes: Sequence[
         "settings": settings,
         "targets": {k: {"seconds": limit, "label": label} for k, (limit, label) in TARGETS.items()},
         "metrics": ["scan_360", "step_free", "step_contact", "arc"],
-        "machine": {"python": platform.python_version(), "numpy": np.__version__,
-                    "platform": platform.platform(), "cpus": os.cpu_count(),
-                    "load_average": list(os.getloadavg()) if hasattr(os, "getloadavg") else None},
+        "machine": machine_info(),
         "units": "seconds",
         "worlds": rows,
     }
 
-
-def _verdict(row: dict, key: str) -> str:
-    v = "PASS" if row["pass"][key] else "FAIL"
-    return v if row["target_applies"] else f"({v})"
 
 
 def render_markdown(result: dict) -> str:
@@ -180,8 +169,8 @@ def render_markdown(result: dict) -> str:
     for r in result["worlds"]:
         lines.append(
             f"| {r['world']} | {r['n_obstacles']} | {r['lidar_range']:g} | {r['mean_returns']:.0f} "
-            f"| {1e3 * r['scan_360']:.3f} | {_verdict(r, 'scan_360')} | {1e3 * r['scan_360_p90']:.3f} "
-            f"| {1e3 * r['step_free']:.3f} | {_verdict(r, 'step_free')} "
+            f"| {1e3 * r['scan_360']:.3f} | {verdict(r, 'scan_360')} | {1e3 * r['scan_360_p90']:.3f} "
+            f"| {1e3 * r['step_free']:.3f} | {verdict(r, 'step_free')} "
             f"| {1e3 * r['step_contact']:.3f} | {1e6 * r['arc']:.2f} |")
     lines += [
         "",
@@ -208,12 +197,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="obstacle counts of random worlds to include")
     args = parser.parse_args(argv)
     result = run(quick=args.quick, shared=tuple(args.shared), sizes=tuple(args.sizes))
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "sim.json").write_text(json.dumps(result, indent=2) + "\n")
-    table = render_markdown(result)
-    (args.out / "sim.md").write_text(table)
-    _log(f"[bench] wrote {args.out / 'sim.json'} and {args.out / 'sim.md'}")
-    print(table)
+    write_results(args.out, "sim", result, render_markdown(result))
     return 0
 
 
