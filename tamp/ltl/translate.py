@@ -41,7 +41,7 @@ from collections import deque
 from functools import lru_cache
 from collections.abc import Sequence
 
-from ._graph import strongly_connected_components
+from ._graph import reachable, strongly_connected_components
 from .automaton import Buchi, Edge
 from .bdd import Bdd, from_minterms
 from .formula import FALSE, TRUE, Formula
@@ -263,38 +263,16 @@ def _sccs(succ: list) -> list[int]:
 
 def _prune(nba: _Nba) -> _Nba:
     """Keep states reachable from the initial state that can reach an accepting cycle."""
-    n = len(nba.succ)
-    reach = {nba.initial}
-    todo = [nba.initial]
-    while todo:
-        q = todo.pop()
-        for d in nba.succ[q]:
-            if d not in reach:
-                reach.add(d)
-                todo.append(d)
-    succ = [list(nba.succ[q]) if q in reach else [] for q in range(n)]
-    comp = _sccs(succ)
-    members: dict[int, list[int]] = {}
-    for q in reach:
-        members.setdefault(comp[q], []).append(q)
-    good = set()
-    for c, qs in members.items():
+    good: set[int] = set()
+    pred: dict[int, list[int]] = {}
+    for qs in strongly_connected_components([nba.initial], nba.succ.__getitem__):
         nontrivial = len(qs) > 1 or qs[0] in nba.succ[qs[0]]
         if nontrivial and any(q in nba.accepting for q in qs):
             good.update(qs)
-    # backward closure
-    pred: dict[int, list[int]] = {q: [] for q in reach}
-    for q in reach:
-        for d in succ[q]:
-            pred[d].append(q)
-    alive = set(good)
-    todo = list(good)
-    while todo:
-        q = todo.pop()
-        for p in pred[q]:
-            if p not in alive:
-                alive.add(p)
-                todo.append(p)
+        for q in qs:
+            for d in nba.succ[q]:
+                pred.setdefault(d, []).append(q)
+    alive = reachable(good, lambda q: pred.get(q, ()))  # backward closure
     out = _Nba()
     if nba.initial not in alive:
         out.add_state(False)
