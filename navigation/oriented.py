@@ -20,34 +20,38 @@ dipole-like at the goal with axis ``theta_G`` and descends the navigation functi
 but build it as the negated gradient of one scalar **oriented potential**, formed in the point
 world of eq. 2 where harmonic functions add::
 
-    phi_O(x) = ln|x - P_G|^2 - (1/K) sum_j ln|x - P_j|^2 + c (x - P_G).p / |x - P_G|^2
-    phi_ONF(q) = mu * logistic(phi_O(Phi(q)))           (eq. 9 applied to phi_O)
+    x'       = A (Phi(q) - P_G),   A = (J J^T)^(-1/2),   J = dPhi/dq at q_G
+    phi_O(x') = ln|x'|^2 - (1/K) sum_j ln|x' - P'_j|^2 + c x'.p / |x'|^2,   P'_j = A (P_j - P_G)
+    phi_ONF(q) = mu * logistic(phi_O(x'(q)))             (eq. 9 applied to phi_O)
     Upsilon(q) = -grad phi_ONF(q)                          (eq. 23 with Gamma folded in)
 
 ``Phi`` is the navigation transformation (diffeomorphism free space -> point world), ``P_G`` the
-goal image, ``P_j`` the point obstacles. The last term is a harmonic **dipole** at ``P_G`` with
-axis ``p`` chosen from ``J``, the Jacobian of ``Phi`` at the goal, so that the *q-space*
-gradient flow enters along ``p_G = (cos theta_G, sin theta_G)`` (gradients do not push forward
-like tangent vectors: ``p ~ J^-T (2 M p_G / (p_G^T M p_G) - p_G)``, ``M = J^T J``; ``p = J p_G``
-up to scale when ``J`` is conformal), and strength ``c > 0``. Consequences, each a guarantee:
+goal image, ``P_j`` the point obstacles. The linear map ``A`` makes the Jacobian of
+``q -> x'`` at the goal the rotation ``A J`` (the point world stays a point world: ``x'`` is still
+a diffeomorphic image of free space). The last term is a harmonic **dipole** at the goal with
+axis ``p = A J p_G`` (``p_G = (cos theta_G, sin theta_G)``, a unit vector since ``A J`` is a
+rotation) and strength ``c > 0``. Without the normalisation a dipole cannot be aimed at every
+heading: for a non-conformal ``J`` the q-space gradient flow of a point-world dipole has no
+stable inflow in a cone around ``J``'s major axis (measured), because gradients do not push
+forward like tangent vectors. Consequences, each a guarantee:
 
-* ``phi_O`` is harmonic in the point world away from ``P_G`` and the ``P_j`` (sum of harmonic
+* ``phi_O`` is harmonic in ``x'`` away from the goal and the ``P'_j`` (sum of harmonic
   functions), so it has no local minimum or maximum there, only saddles; it tends to ``+inf`` at
   every ``P_j`` and at infinity (the images of the obstacle and workspace boundaries, where the
   logarithms dominate the bounded dipole term), so ``phi_ONF -> mu`` on every boundary and
   ``-grad phi_ONF`` points away from every boundary (no collision);
-* near ``P_G`` the dipole ``c cos(angle)/|x - P_G|`` dominates the logarithm: ``phi_O -> -inf``
-  only from behind the goal (``(x - P_G).p < 0``), and the integral curves of the dipole are the
-  circles through ``P_G`` tangent to ``p``, all entering ``P_G`` from behind; with the axis
-  above, the q-space gradient curves enter ``q_G`` along ``p_G``: arrival with heading
-  ``theta_G``;
+* near the goal the dipole ``c cos(angle)/|x'|`` dominates the logarithm: ``phi_O -> -inf``
+  only from behind the goal (``x'.p < 0``), and the integral curves of the dipole are the circles
+  through the goal tangent to ``p``, all entering it from behind; since ``x' ~ (A J)(q - q_G)``
+  with ``A J`` a rotation, the q-space gradient curves enter ``q_G`` along ``p_G``: arrival with
+  heading ``theta_G``;
 * the field is the gradient of one smooth function: it is smooth everywhere in free space except
   at the goal itself, and its Jacobian ``-Hess phi_ONF`` is exact (forward-mode jets through the
   chain, analytic derivatives in the point world).
 
-``c`` (``strength``) sets how far from the goal the dipole takes over; the default is
-``DIPOLE_FRACTION = 0.3`` of the point-world distance from ``P_G`` to the nearest point
-obstacle (or, without obstacles, of ``|J| * `` the goal's clearance to the workspace boundary).
+``c`` (``strength``, in metres since ``x'`` is locally a rotated copy of ``q - q_G``) sets how far
+from the goal the dipole takes over; the default is ``DIPOLE_FRACTION = 0.3`` times the goal's
+exact clearance to the nearest obstacle or the workspace boundary.
 
 The controller needs only the *direction* ``theta_gamma`` of ``Upsilon`` and its gradient; both
 are computed from ``phi_O`` (the logistic does not change directions), so they stay accurate
