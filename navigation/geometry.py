@@ -348,35 +348,26 @@ def beta_jet(p: np.ndarray, x: Jet, y: Jet) -> Jet:
     return (r2 + root) * 0.5 - 1.0
 
 
-def _beta_and_slope(p: np.ndarray, o: np.ndarray, d: np.ndarray, r: np.ndarray):
-    """``beta(o + r d)`` and its derivative in ``r`` (plain arrays, for root finding)."""
-    qx = o[:, 0] + r * d[:, 0]
-    qy = o[:, 1] + r * d[:, 1]
-    dx, dy = qx - p[:, CX], qy - p[:, CY]
-    x = (dx * p[:, COS] + dy * p[:, SIN]) / p[:, HW]
-    y = (dy * p[:, COS] - dx * p[:, SIN]) / p[:, HH]
-    ax = (d[:, 0] * p[:, COS] + d[:, 1] * p[:, SIN]) / p[:, HW]
-    ay = (d[:, 1] * p[:, COS] - d[:, 0] * p[:, SIN]) / p[:, HH]
-    x2, y2 = x * x, y * y
-    k = 2.0 - 4.0 * p[:, S] ** 2
-    root = np.sqrt(np.maximum(x2 * x2 + y2 * y2 + k * x2 * y2, 1e-300))
-    beta = 0.5 * (x2 + y2 + root) - 1.0
-    bx = x + (2.0 * x2 * x + k * x * y2) / (2.0 * root)
-    by = y + (2.0 * y2 * y + k * y * x2) / (2.0 * root)
-    return beta, bx * ax + by * ay
+def _ray_frame(p: np.ndarray, o: np.ndarray, d: np.ndarray):
+    """Rays ``o + r d`` in the normalised frames of rows ``p``: ``(x0, y0, ax, ay)`` with
+    ``(x, y)(r) = (x0 + r ax, y0 + r ay)``."""
+    c, sn = p[:, COS], p[:, SIN]
+    ihw, ihh = 1.0 / p[:, HW], 1.0 / p[:, HH]
+    dx, dy = o[:, 0] - p[:, CX], o[:, 1] - p[:, CY]
+    x0 = (dx * c + dy * sn) * ihw
+    y0 = (dy * c - dx * sn) * ihh
+    ax = (d[:, 0] * c + d[:, 1] * sn) * ihw
+    ay = (d[:, 1] * c - d[:, 0] * sn) * ihh
+    return x0, y0, ax, ay
 
 
-def _rectangle_crossing(p: np.ndarray, o: np.ndarray, d: np.ndarray, entry: np.ndarray) -> np.ndarray:
-    """Where rays cross the bounding rectangle of their squircle (exit, or entry where ``entry``).
+def _rectangle_crossing(x0, y0, ax, ay, entry: np.ndarray) -> np.ndarray:
+    """Where rays (normalised frame, :func:`_ray_frame`) cross the bounding rectangle of their
+    squircle, ``[-1, 1]^2`` (exit, or entry where ``entry``).
 
     The rectangle contains the squircle, so its exit point lies beyond the squircle's exit and
     its entry point before the squircle's entry: safe starting points for monotone Newton.
     """
-    dx, dy = o[:, 0] - p[:, CX], o[:, 1] - p[:, CY]
-    x0 = (dx * p[:, COS] + dy * p[:, SIN]) / p[:, HW]
-    y0 = (dy * p[:, COS] - dx * p[:, SIN]) / p[:, HH]
-    ax = (d[:, 0] * p[:, COS] + d[:, 1] * p[:, SIN]) / p[:, HW]
-    ay = (d[:, 1] * p[:, COS] - d[:, 0] * p[:, SIN]) / p[:, HH]
     with np.errstate(divide="ignore", invalid="ignore"):
         tx1, tx2 = (-1.0 - x0) / ax, (1.0 - x0) / ax
         ty1, ty2 = (-1.0 - y0) / ay, (1.0 - y0) / ay
@@ -392,50 +383,136 @@ def ray_length_packed(p: np.ndarray, o: np.ndarray, d: np.ndarray, entry: np.nda
 
     Rows with ``entry`` False (default): ``o`` is inside; the exit distance is returned.
     Rows with ``entry`` True: ``o`` is outside and the ray is known to enter the squircle; the
-    entry distance (first crossing) is returned. Newton's method on ``beta`` along the ray, which
-    is convex (``beta + 1`` is a squared gauge), started where the ray crosses the bounding
-    rectangle, i.e. on the far side of the wanted root: the iterates are monotone and cannot
-    skip it. Arrays ``p (K, 7)``, ``o (K, 2)``, ``d (K, 2)``, ``entry (K,)``.
+    entry distance (first crossing) is returned. Newton's method on the gauge
+    ``g = sqrt(beta + 1)`` along the ray (a norm of an affine function of ``r``, hence convex and
+    nearly linear, so few steps are needed; the root ``g = 1`` is that of ``beta``), started
+    where the ray crosses the bounding rectangle, i.e. on the far side of the wanted root: the
+    iterates are monotone and cannot skip it. Arrays ``p (K, 7)``, ``o (K, 2)``, ``d (K, 2)``,
+    ``entry (K,)``.
     """
     if entry is None:
         entry = np.zeros(len(p), dtype=bool)
-    r = _rectangle_crossing(p, o, d, entry)
+    x0, y0, ax, ay = _ray_frame(p, o, d)
+    r = _rectangle_crossing(x0, y0, ax, ay, entry)
     hi = np.where(entry, r + 2.0 * np.hypot(p[:, HW], p[:, HH]), r)
+    k = 2.0 - 4.0 * p[:, S] ** 2
+    sgn = np.where(entry, -1.0, 1.0)
     for _ in range(100):
-        f, fp = _beta_and_slope(p, o, d, r)
-        good = np.where(entry, fp < 0, fp > 0) & (f >= 0)
-        r_new = np.where(good, r - f / np.where(good, fp, 1.0), r)
-        r_new = np.clip(r_new, 0.0, hi)
+        x = x0 + r * ax
+        y = y0 + r * ay
+        x2, y2 = x * x, y * y
+        root = np.sqrt(np.maximum(x2 * x2 + y2 * y2 + k * x2 * y2, 1e-300))
+        g2 = 0.5 * (x2 + y2 + root)  # beta + 1
+        half = 0.5 / root
+        fp = x * ax * (1.0 + (2.0 * x2 + k * y2) * half) + y * ay * (1.0 + (2.0 * y2 + k * x2) * half)
+        good = (sgn * fp > 0) & (g2 >= 1.0)
+        g = np.sqrt(g2)
+        # Newton on g: r - (g - 1) / g' with g - 1 = beta / (g + 1) and g' = beta' / (2 g)
+        step = (g2 - 1.0) * (2.0 * g) / ((g + 1.0) * np.where(good, fp, 1.0))
+        r_new = np.clip(np.where(good, r - step, r), 0.0, hi)
         if np.all(np.abs(r_new - r) <= 4e-16 * (1.0 + r)):
             return r_new
         r = r_new
     return r
 
 
+def _beta_derivatives(p: np.ndarray, qx: np.ndarray, qy: np.ndarray):
+    """``beta`` at points ``(qx, qy)`` with its exact gradient and packed Hessian in ``q``.
+
+    Plain arrays (analytic formulas of eq. (4), no jets), broadcasting ``p[..., col]`` against
+    ``qx``; used away from the centre (``x^4 + y^4 + (2 - 4s^2) x^2 y^2 > 0``). Returns
+    ``(beta, b_x, b_y, b_xx, b_xy, b_yy)``.
+    """
+    c, sn = p[..., COS], p[..., SIN]
+    ihw, ihh = 1.0 / p[..., HW], 1.0 / p[..., HH]
+    dx, dy = qx - p[..., CX], qy - p[..., CY]
+    x = (dx * c + dy * sn) * ihw
+    y = (dy * c - dx * sn) * ihh
+    k = 2.0 - 4.0 * p[..., S] ** 2
+    x2, y2 = x * x, y * y
+    kxy = k * x * y
+    d = x2 * x2 + y2 * y2 + k * x2 * y2
+    root = np.sqrt(d)
+    i1 = 0.25 / root  # 1 / (4 sqrt(D))
+    i3 = 0.5 * i1 / d  # 1 / (8 D^(3/2))
+    dd_x = x * (4.0 * x2 + 2.0 * k * y2)
+    dd_y = y * (4.0 * y2 + 2.0 * k * x2)
+    gx = x + dd_x * i1
+    gy = y + dd_y * i1
+    hxx = 1.0 + (12.0 * x2 + 2.0 * k * y2) * i1 - dd_x * dd_x * i3
+    hxy = 4.0 * kxy * i1 - dd_x * dd_y * i3
+    hyy = 1.0 + (12.0 * y2 + 2.0 * k * x2) * i1 - dd_y * dd_y * i3
+    # back to q: (x, y) = M (q - c) with M = [[c, s] / hw, [-s, c] / hh]
+    ax, bx = c * ihw, sn * ihw
+    ay, by = -sn * ihh, c * ihh
+    beta = 0.5 * (x2 + y2 + root) - 1.0
+    b_x = gx * ax + gy * ay
+    b_y = gx * bx + gy * by
+    b_xx = hxx * ax * ax + 2.0 * hxy * ax * ay + hyy * ay * ay
+    b_xy = hxx * ax * bx + hxy * (ax * by + ay * bx) + hyy * ay * by
+    b_yy = hxx * bx * bx + 2.0 * hxy * bx * by + hyy * by * by
+    return beta, b_x, b_y, b_xx, b_xy, b_yy
+
+
+def _root_jet(p: np.ndarray, o: np.ndarray, r0: np.ndarray, ux: Jet, uy: Jet) -> Jet:
+    """Jet of the ray length ``r(u)`` defined by ``beta(o + r u) = 0``, given its value ``r0``.
+
+    Implicit function theorem on ``F(r, u) = beta(o + r u)``: with the analytic partials of
+    ``F`` at the root (from :func:`_beta_derivatives`), ``r_a = -F_a / F_r`` and
+    ``r_ab = -(F_ab + F_ar r_b + F_br r_a + F_rr r_a r_b) / F_r``, then the chain rule through
+    the direction jets (:meth:`Jet.compose2`). Exact derivatives, one pass, no jet solve.
+    """
+    if ux.order == 0:
+        return Jet.constant(r0, 0)
+    vx, vy = ux.v, uy.v
+    qx = o[..., 0] + r0 * vx
+    qy = o[..., 1] + r0 * vy
+    _, bx, by, bxx, bxy, byy = _beta_derivatives(p, qx, qy)
+    inv = -1.0 / (bx * vx + by * vy)  # -1 / F_r
+    ra = r0 * bx * inv
+    rb = r0 * by * inv
+    if ux.order == 1:
+        return Jet.compose2(r0, ra, rb, None, None, None, ux, uy)
+    hux = bxx * vx + bxy * vy  # (H u)_x
+    huy = bxy * vx + byy * vy
+    f_rr = vx * hux + vy * huy
+    f_ra = bx + r0 * hux
+    f_rb = by + r0 * huy
+    r2 = r0 * r0
+    raa = (r2 * bxx + 2.0 * f_ra * ra + f_rr * ra * ra) * inv
+    rab = (r2 * bxy + f_ra * rb + f_rb * ra + f_rr * ra * rb) * inv
+    rbb = (r2 * byy + 2.0 * f_rb * rb + f_rr * rb * rb) * inv
+    return Jet.compose2(r0, ra, rb, raa, rab, rbb, ux, uy)
+
+
 def ray_length_jet(p: np.ndarray, o: np.ndarray, ux: Jet, uy: Jet, entry: np.ndarray | None = None) -> Jet:
     """Jet of the exact ray length (see :func:`ray_length_packed`) along unit direction jets.
 
-    The root is found in floating point, then refined by two chord-Newton steps in jet
-    arithmetic with the (constant) slope at the root: each step adds one exact derivative
-    order, so the value, gradient and Hessian of the result are exact.
+    The root is found in floating point; its derivatives with respect to the direction follow
+    from the implicit function theorem (:func:`_root_jet`), so the value, gradient and Hessian
+    of the result are exact.
     """
     d = np.stack((ux.v, uy.v), axis=1)
     r0 = ray_length_packed(p, o, d, entry)
-    _, slope = _beta_and_slope(p, o, d, r0)
-    inv = 1.0 / slope
-    r = Jet.constant(r0, ux.order)
-    for _ in range(2 if ux.order > 0 else 0):
-        bx = ux * r + o[:, 0]
-        by = uy * r + o[:, 1]
-        r = r - beta_jet(p, bx, by) * inv
-    return r
+    return _root_jet(p, o, r0, ux, uy)
 
 
 def ray_length_center_jet(p: np.ndarray, ux: Jet, uy: Jet) -> Jet:
-    """Jet of the ray length from the centre along unit direction jets (paper 004 eq. 5)."""
-    a = (ux * p[..., COS] + uy * p[..., SIN]) * (1.0 / p[..., HW])
-    b = (uy * p[..., COS] - ux * p[..., SIN]) * (1.0 / p[..., HH])
-    n2 = a.square() + b.square()
-    m2 = (a * b).square() / n2.square()  # (u_x u_y)^2 of the normalised direction
-    rho2 = 2.0 / (1.0 + (1.0 - m2 * (4.0 * p[..., S] ** 2)).sqrt())
-    return (rho2 / n2).sqrt()
+    """Jet of the ray length from the centre along unit direction jets (paper 004 eq. 5).
+
+    ``beta + 1`` is the square of the squircle's gauge, a norm about the centre, so the boundary
+    point along ``u`` is ``c + u / gauge(u)`` and ``R(u) = (beta(c + u) + 1)^(-1/2)`` (the same
+    number as eq. 5), differentiated analytically through :func:`_beta_derivatives`.
+    """
+    qx = p[..., CX] + ux.v
+    qy = p[..., CY] + uy.v
+    b, bx, by, bxx, bxy, byy = _beta_derivatives(p, qx, qy)
+    r = 1.0 / np.sqrt(b + 1.0)  # the same value at every order (the goal's image must match)
+    if ux.order == 0:
+        return Jet(r[..., None])
+    r3 = -0.5 * r * r * r  # d/db (b + 1)^(-1/2)
+    if ux.order == 1:
+        return Jet.compose2(r, r3 * bx, r3 * by, None, None, None, ux, uy)
+    r5 = -1.5 * r3 * r * r  # d2/db2 = (3/4) (b + 1)^(-5/2)
+    return Jet.compose2(r, r3 * bx, r3 * by, r5 * bx * bx + r3 * bxx, r5 * bx * by + r3 * bxy,
+                        r5 * by * by + r3 * byy, ux, uy)
