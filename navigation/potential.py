@@ -186,6 +186,7 @@ class NavigationFunction:
         self.goal = g[0].copy()
         self._ws = pack([forest.workspace])
         self._obs = pack(forest.obstacles) if len(forest.obstacles) else np.zeros((0, 7))
+        self._rows = np.concatenate((self._ws, self._obs))
         self._check_goal()
         if params is None:
             params = self._rule(**overrides)
@@ -290,9 +291,10 @@ class NavigationFunction:
         return restore(self._free(pts), single)
 
     def _free(self, pts: np.ndarray) -> np.ndarray:
-        free = _beta_values(self._ws, pts)[:, 0] < -FREE_MARGIN
-        if len(self._obs):
-            free &= np.all(_beta_values(self._obs, pts) > FREE_MARGIN, axis=1)
+        b = _beta_values(self._rows, pts)  # workspace first, then the obstacles: one pass
+        free = b[:, 0] < -FREE_MARGIN
+        if b.shape[1] > 1:
+            free &= np.all(b[:, 1:] > FREE_MARGIN, axis=1)
         return free
 
     def value(self, q) -> np.ndarray:
@@ -341,8 +343,9 @@ class NavigationFunction:
         grad = np.zeros((n, 2)) if order >= 1 else None
         hess = np.zeros((n, 2, 2)) if order >= 2 else None
         free = self._free(pts)
-        idx = np.nonzero(free)[0]
-        if len(idx):
+        every = bool(free.all())
+        idx = slice(None) if every else np.nonzero(free)[0]  # all free: no gather/scatter
+        if every or len(idx):
             x, y = self.chain.apply(*Jet.variables(pts[idx], order))
             nf, phi = self._potential(x, y)
             value[idx] = mu * nf.v
@@ -351,6 +354,8 @@ class NavigationFunction:
                 grad[idx] = mu * nf.g
             if order >= 2:
                 hess[idx] = mu * nf.hessian()
+        if every:
+            return NavEval(value, grad, hess, potential, free)
         out = np.nonzero(~free)[0]
         if len(out) and order >= 1:
             grad[out] = self._outside_direction(pts[out])
@@ -380,18 +385,20 @@ class NavigationFunction:
         with np.errstate(divide="ignore"):
             phi = np.log(dg) + lh
         near = phi < 0
+        n_near = int(np.count_nonzero(near))
         out = np.empty_like(x.a)
-        if np.any(near):
-            i = near
+        if n_near:
+            # one branch only (the common case for few points): no masked copies
+            i = slice(None) if n_near == len(near) else near
             xs, ys = x[i], y[i]
-            d_jet = Jet.compose2(dg[i], 2 * gx[i], 2 * gy[i], np.full(i.sum(), 2.0), np.zeros(i.sum()),
-                                 np.full(i.sum(), 2.0), xs, ys)
+            d_jet = Jet.compose2(dg[i], 2 * gx[i], 2 * gy[i], np.full(n_near, 2.0), np.zeros(n_near),
+                                 np.full(n_near, 2.0), xs, ys)
             lh_jet = Jet.compose2(lh[i], lhx[i], lhy[i], lhxx[i], lhxy[i], lhyy[i], xs, ys)
             g = d_jet * lh_jet.exp()
             q = 1.0 / (1.0 + g.v)
             out[i] = g.apply(g.v * q, q * q, -2.0 * q * q * q).a
-        if np.any(~near):
-            i = ~near
+        if n_near < len(near):
+            i = slice(None) if n_near == 0 else ~near
             xs, ys = x[i], y[i]
             inv_d = 1.0 / dg[i]
             fx = 2 * gx[i] * inv_d + lhx[i]

@@ -63,12 +63,33 @@ def _eta(j: Jet) -> Jet:
 
 
 def _polar(x: Jet, y: Jet, c: np.ndarray):
-    """Distance ``r`` and unit direction ``u`` of ``q - c`` (jets)."""
-    dx = x - c[:, 0]
-    dy = y - c[:, 1]
-    r = (dx.square() + dy.square()).sqrt()
-    inv = r.reciprocal()
-    return r, dx * inv, dy * inv
+    """Distance ``r`` and unit direction ``u`` of ``q - c`` (jets).
+
+    Analytic first and second partials of ``r = |d|``, ``u = d / r`` (``d = q - c``), chained
+    through ``(x, y)`` in one stacked :meth:`Jet.compose2` (instead of nine jet operations).
+    """
+    dx = x.v - c[..., 0]
+    dy = y.v - c[..., 1]
+    r = np.hypot(dx, dy)
+    ir = 1.0 / r
+    ux, uy = dx * ir, dy * ir
+    if x.order == 0:
+        return Jet(r[:, None]), Jet(ux[:, None]), Jet(uy[:, None])
+    xx, xy, yy = ux * ux * ir, ux * uy * ir, uy * uy * ir  # u u^T / r
+    ir2 = ir * ir
+    a = uy * (2.0 * ux * ux - uy * uy) * ir2
+    b = ux * (2.0 * uy * uy - ux * ux) * ir2
+    f = np.array((r, ux, uy))
+    fx = np.array((ux, yy, -xy))
+    fy = np.array((uy, -xy, xx))
+    if x.order == 1:
+        out = Jet.compose2(f, fx, fy, None, None, None, x, y).a
+    else:
+        fxx = np.array((yy, -3.0 * ux * uy * uy * ir2, a))
+        fxy = np.array((-xy, a, b))
+        fyy = np.array((xx, b, -3.0 * ux * ux * uy * ir2))
+        out = Jet.compose2(f, fx, fy, fxx, fxy, fyy, x, y).a
+    return Jet(out[0]), Jet(out[1]), Jet(out[2])
 
 
 def _pairs(x: Jet, y: Jet, rows: np.ndarray, margin: np.ndarray):
@@ -247,13 +268,39 @@ class SphereToPoint(_Stage):
         return _scatter(x, y, np.nonzero(sel)[0], shift * ux, shift * uy)
 
     def psi(self, x: Jet, y: Jet) -> tuple[Jet, Jet]:
-        """``psi``: the outer circle of radius ``rho0`` goes to infinity."""
-        dx = x - self.c0[0]
-        dy = y - self.c0[1]
-        gap = self.rho0 - (dx.square() + dy.square()).sqrt()
-        gap = Jet.where(gap.v > 0, gap, Jet.constant(np.finfo(float).tiny, gap.order, gap.v.shape))
-        gain = self.rho0 / gap
-        return dx * gain + self.c0[0], dy * gain + self.c0[1]
+        """``psi``: the outer circle of radius ``rho0`` goes to infinity.
+
+        ``psi(q) = c0 + G(r) d`` with ``d = q - c0``, ``r = |d|``, ``G(r) = rho0 / (rho0 - r)``;
+        analytic partials (``G' = G^2 / rho0``, ``G'' = 2 G^3 / rho0^2``) chained through
+        ``(x, y)`` in one stacked :meth:`Jet.compose2`. On or beyond the circle the gap is
+        clamped to the smallest positive float with zero derivatives.
+        """
+        c0, rho0 = self.c0, self.rho0
+        dx = x.v - c0[0]
+        dy = y.v - c0[1]
+        r = np.hypot(dx, dy)
+        ok = r < rho0
+        gain = rho0 / np.where(ok, rho0 - r, np.finfo(float).tiny)
+        f = np.array((c0[0] + dx * gain, c0[1] + dy * gain))
+        if x.order == 0:
+            return Jet(f[0][:, None]), Jet(f[1][:, None])
+        ir = 1.0 / r
+        ux, uy = dx * ir, dy * ir
+        g1 = np.where(ok, gain * gain * (1.0 / rho0), 0.0)  # G'
+        t = r * g1
+        fx = np.array((gain + t * ux * ux, t * ux * uy))
+        fy = np.array((fx[1], gain + t * uy * uy))
+        if x.order == 1:
+            out = Jet.compose2(f, fx, fy, None, None, None, x, y).a
+        else:
+            pp = 2.0 * t * gain * (1.0 / rho0) - g1  # r G'' - G'
+            ax = g1 + pp * ux * ux
+            ay = g1 + pp * uy * uy
+            fxx = np.array((ux * (2.0 * g1 + ax), uy * ax))
+            fxy = np.array((uy * ax, ux * ay))
+            fyy = np.array((ux * ay, uy * (2.0 * g1 + ay)))
+            out = Jet.compose2(f, fx, fy, fxx, fxy, fyy, x, y).a
+        return Jet(out[0]), Jet(out[1])
 
     def apply(self, x: Jet, y: Jet) -> tuple[Jet, Jet]:
         return self.psi(*self.outer(*self.collapse(x, y)))
