@@ -1,0 +1,412 @@
+"""Squircle fitting of point clusters, conservative completion, decomposition, inflation.
+
+Paper 001 section 4.1.2 models every obstacle as a squircle (FORMATS.md): centre ``c``, half
+extents ``a = width/2``, ``b = height/2``, rotation ``theta`` and curvature ``s``. In the
+normalised frame ``x = p_x / a``, ``y = p_y / b`` with ``p = R(-theta)(q - c)``,
+
+.. math::  g(q)^2 = \\beta(q) + 1 = \\tfrac12\\left(x^2 + y^2 + \\sqrt{x^4 + y^4 + (2 - 4 s^2) x^2 y^2}\\right)
+
+``g`` is a gauge (positively homogeneous of degree 1, ``g = 1`` on the boundary), so the point
+of the boundary on the ray from ``c`` through ``q`` is ``c + (q - c) / g`` and the *radial
+error* is
+
+.. math::  e(q) = |q - c| \\, (1 - 1 / g(q))   \\qquad (> 0 \\text{ outside}).
+
+:func:`fit_squircle` minimises ``sum e(q_i)^2`` over the cluster's points plus a penalty for
+free-space evidence inside the estimate, by ``scipy.optimize.least_squares`` over
+``(c, log a, log b, theta, s)``, started from OpenCV's ``minAreaRect`` (``s = 0.9``) and
+``fitEllipse`` (``s = 0.1``) of the points; of the two results the one with the smaller total
+cost is kept, the free-space penalty deciding between fits of comparable point error. Then
+the *conservative completion*:
+
+1. a face of the estimate counts as seen when at least two points lie on it and were seen
+   from outside it (the beam direction points into the face); along an axis whose two faces
+   were not both seen the extent is at least ``min_unseen``, grown away from the seen face
+   (behind it, where the beams did not reach);
+2. extents are at least ``min_extent`` and at most ``max_extent``;
+3. the estimate is scaled about its centre until every observed point lies on or inside its
+   boundary, up to ``inside_tol``.
+
+:func:`fit_cluster` decomposes clusters a single squircle does not explain (paper 001
+section 4.2.1): when the RMS radial error exceeds ``split_tol`` the points are cut in two
+where the sum of the halves' rectangle errors is smallest (cuts across either axis of the
+minimum-area rectangle, i.e. at the corners of L, T and U shapes), recursively, and every
+piece is fitted on its own; adjacent pieces overlap once inflated, forming a tree.
+
+:func:`inflate` grows a squircle by the robot radius (configuration-space obstacle).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from scipy.optimize import least_squares
+
+from navigation.geometry import Squircle
+
+from .config import PerceptionConfig
+from .errors import ScanError
+
+__all__ = ["Fit", "gauge", "radial_error", "fit_squircle", "fit_cluster", "inflate", "rect_error"]
+
+_S_MAX = 0.99
+_MAX_POINTS = 240  # points used by one least-squares fit (evenly subsampled)
+_MAX_FREE = 200
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Fit:
+    """A fitted squircle and how well it explains its points.
+
+    Attributes
+    ----------
+    squircle : Squircle
+    rms : float
+        RMS radial error of the points (m) of the least-squares fit, before completion.
+    closed : bool
+        True when every face was seen (no completion was needed).
+    indices : ndarray of int
+        Indices of the points (in the array given to :func:`fit_cluster`) this piece explains.
+    """
+
+    squircle: Squircle
+    rms: float
+    closed: bool
+    indices: np.ndarray
+
+
+def _params(sq: Squircle) -> np.ndarray:
+    return np.array([sq.center[0], sq.center[1], math.log(sq.width / 2), math.log(sq.height / 2), sq.theta, sq.s])
+
+
+def _gauge_xy(x: np.ndarray, y: np.ndarray, s) -> np.ndarray:
+    x2, y2 = x * x, y * y
+    return np.sqrt(0.5 * (x2 + y2 + np.sqrt(np.maximum(x2 * x2 + y2 * y2 + (2.0 - 4.0 * s * s) * x2 * y2, 0.0))))
+
+
+def _local(p: np.ndarray, q: np.ndarray):
+    c, sn = math.cos(p[4]), math.sin(p[4])
+    dx, dy = q[:, 0] - p[0], q[:, 1] - p[1]
+    return dx * c + dy * sn, dy * c - dx * sn
+
+
+def gauge(sq: Squircle, q) -> np.ndarray:
+    """Gauge ``g(q) = sqrt(beta(q) + 1)`` of ``sq`` at points ``q (N, 2)`` (``< 1`` inside)."""
+    q = np.asarray(q, dtype=float).reshape(-1, 2)
+    u, v = _local(_params(sq), q)
+    return _gauge_xy(u / (sq.width / 2), v / (sq.height / 2), sq.s)
+
+
+def radial_error(sq: Squircle, q) -> np.ndarray:
+    """Signed radial error ``|q - c| (1 - 1/g(q))`` of points ``q (N, 2)`` (positive outside)."""
+    q = np.asarray(q, dtype=float).reshape(-1, 2)
+    g = np.maximum(gauge(sq, q), 1e-9)
+    return np.linalg.norm(q - np.asarray(sq.center), axis=1) * (1.0 - 1.0 / g)
+
+
+def _residuals(p: np.ndarray, q: np.ndarray, free: np.ndarray, w_free: float) -> np.ndarray:
+    u, v = _local(p, q)
+    a, b = math.exp(p[2]), math.exp(p[3])
+    g = np.maximum(_gauge_xy(u / a, v / b, p[5]), 1e-6)
+    r = np.hypot(u, v) * (1.0 - 1.0 / g)
+    if len(free):
+        fu, fv = _local(p, free)
+        gf = np.maximum(_gauge_xy(fu / a, fv / b, p[5]), 0.2)
+        pen = w_free * np.hypot(fu, fv) * np.maximum(1.0 / gf - 1.0, 0.0)
+        return np.concatenate((r, pen))
+    return r
+
+
+def rect_error(points: np.ndarray) -> float:
+    """Mean distance of ``points (N, 2)`` to the boundary of their minimum-area rectangle."""
+    if len(points) < 3:
+        return 0.0
+    (cx, cy), (w, h), ang = cv2.minAreaRect(points.astype(np.float32))
+    t = math.radians(ang)
+    c, s = math.cos(t), math.sin(t)
+    dx, dy = points[:, 0] - cx, points[:, 1] - cy
+    u, v = np.abs(dx * c + dy * s), np.abs(dy * c - dx * s)
+    return float(np.mean(np.maximum(np.minimum(w / 2 - u, h / 2 - v), 0.0)))
+
+
+def _subsample(a: np.ndarray, n: int) -> np.ndarray:
+    if len(a) <= n:
+        return a
+    return a[np.linspace(0, len(a) - 1, n).astype(int)]
+
+
+def _seeds(points: np.ndarray, views: np.ndarray | None, cfg: PerceptionConfig) -> list[np.ndarray]:
+    """Initial parameter vectors from ``minAreaRect`` and ``fitEllipse`` (OpenCV)."""
+    P = points.astype(np.float32)
+    (cx, cy), (w, h), ang = cv2.minAreaRect(P)
+    t = math.radians(ang)
+    hw, hh = max(w / 2, cfg.min_extent / 2), max(h / 2, cfg.min_extent / 2)
+    c = np.array([cx, cy])
+    # a thin view (one face): put the unseen thickness behind it, away from the sensor
+    if views is not None and len(views):
+        vbar = views.mean(axis=0)
+        ax = np.array([math.cos(t), math.sin(t)])
+        ay = np.array([-math.sin(t), math.cos(t)])
+        if 2 * hw < cfg.min_unseen:
+            c = c + ax * math.copysign(cfg.min_unseen / 2 - hw, float(vbar @ ax) or 1.0)
+            hw = cfg.min_unseen / 2
+        if 2 * hh < cfg.min_unseen:
+            c = c + ay * math.copysign(cfg.min_unseen / 2 - hh, float(vbar @ ay) or 1.0)
+            hh = cfg.min_unseen / 2
+    seeds = [np.array([c[0], c[1], math.log(hw), math.log(hh), t, 0.9])]
+    if len(P) >= 5:
+        try:
+            (ex, ey), (ea, eb), eang = cv2.fitEllipse(P)
+        except cv2.error:  # degenerate (collinear) points
+            ea = eb = float("nan")
+        if (np.isfinite([ex, ey, ea, eb]).all() and min(ea, eb) > cfg.min_extent
+                and max(ea, eb) < 3 * max(w, h, cfg.min_unseen)):
+            seeds.append(np.array([ex, ey, math.log(ea / 2), math.log(eb / 2), math.radians(eang), 0.1]))
+    return seeds
+
+
+def _solve(seed: np.ndarray, q: np.ndarray, free: np.ndarray, cfg: PerceptionConfig):
+    lo = np.array([-np.inf, -np.inf, math.log(cfg.min_extent / 2), math.log(cfg.min_extent / 2), -np.inf, 0.0])
+    hi = np.array([np.inf, np.inf, math.log(cfg.max_extent / 2), math.log(cfg.max_extent / 2), np.inf, _S_MAX])
+    x0 = np.clip(seed, lo + 1e-9, hi - 1e-9)
+    scale = np.array([0.05, 0.05, 0.2, 0.2, 0.1, 0.1])
+    try:
+        res = least_squares(_residuals, x0, bounds=(lo, hi), args=(q, free, 1.0), x_scale=scale,
+                            method="trf", max_nfev=40, xtol=1e-6, ftol=1e-6)
+    except (ValueError, np.linalg.LinAlgError):
+        return None
+    if not np.all(np.isfinite(res.x)):
+        return None
+    rp = res.fun[: len(q)]
+    return res.x, float(np.sqrt(np.mean(rp * rp))), float(np.sum(res.fun[len(q):] ** 2))
+
+
+def _faces_seen(p: np.ndarray, q: np.ndarray, views: np.ndarray | None) -> np.ndarray:
+    """``seen[axis, side]``: face ``side`` (0: negative, 1: positive) of ``axis`` was seen."""
+    seen = np.zeros((2, 2), bool)
+    if views is None or not len(views):
+        return ~seen
+    u, v = _local(p, q)
+    a, b = math.exp(p[2]), math.exp(p[3])
+    nu, nv = u / a, v / b
+    c, s = math.cos(p[4]), math.sin(p[4])
+    vu, vv = views[:, 0] * c + views[:, 1] * s, views[:, 1] * c - views[:, 0] * s
+    on_u = np.abs(nu) >= np.abs(nv)
+    for axis, (n, vc, on) in enumerate(((nu, vu, on_u), (nv, vv, ~on_u))):
+        for side, sgn in enumerate((-1.0, 1.0)):
+            hits = on & (sgn * n > 0.3) & (sgn * vc < -0.05)
+            seen[axis, side] = int(hits.sum()) >= 2
+    return seen
+
+
+def _complete(p: np.ndarray, q: np.ndarray, views, cfg: PerceptionConfig) -> tuple[np.ndarray, bool]:
+    """Conservative completion (module docstring, steps 1-2)."""
+    p = p.copy()
+    seen = _faces_seen(p, q, views)
+    c, s = math.cos(p[4]), math.sin(p[4])
+    axes = (np.array([c, s]), np.array([-s, c]))
+    for k in range(2):
+        h = math.exp(p[2 + k])
+        if seen[k].all() or 2 * h >= cfg.min_unseen:
+            continue
+        new = cfg.min_unseen / 2
+        if seen[k, 1] and not seen[k, 0]:
+            shift = -(new - h)  # the + face stays, grow towards -
+        elif seen[k, 0] and not seen[k, 1]:
+            shift = new - h
+        else:
+            shift = 0.0
+        p[0:2] += axes[k] * shift
+        p[2 + k] = math.log(new)
+    for k in (2, 3):
+        p[k] = min(max(p[k], math.log(cfg.min_extent / 2)), math.log(cfg.max_extent / 2))
+    return p, bool(seen.all())
+
+
+def _contain(p: np.ndarray, q: np.ndarray, tol: float) -> np.ndarray:
+    """Scale the extents about the centre until every point is within ``tol`` of the inside."""
+    u, v = _local(p, q)
+    a, b = math.exp(p[2]), math.exp(p[3])
+    g = _gauge_xy(u / a, v / b, p[5])
+    d = np.hypot(u, v)
+    need = g / (1.0 + tol / np.maximum(d, 1e-9))
+    f = float(need.max()) if len(need) else 1.0
+    if f > 1.0:
+        p = p.copy()
+        p[2] += math.log(f) + 1e-9
+        p[3] += math.log(f) + 1e-9
+    return p
+
+
+def _to_squircle(p: np.ndarray) -> Squircle:
+    th = math.remainder(float(p[4]), 2 * math.pi)
+    return Squircle((float(p[0]), float(p[1])), 2 * math.exp(p[2]), 2 * math.exp(p[3]), th,
+                    float(min(max(p[5], 0.0), _S_MAX)))
+
+
+def fit_squircle(points, *, views=None, free=None, config: PerceptionConfig | None = None) -> Fit:
+    """Fit one squircle to a cluster (module docstring), conservatively completed.
+
+    Parameters
+    ----------
+    points : array_like, shape (N, 2), N >= 1
+        Surface points of one obstacle (world frame).
+    views : array_like, shape (N, 2), optional
+        Unit directions from the sensor to each point (which side each point was seen from).
+    free : array_like, shape (F, 2), optional
+        Points known to be free (the beams passed there); penalised inside the estimate.
+    config : PerceptionConfig, optional
+
+    Returns
+    -------
+    Fit
+
+    Raises
+    ------
+    ScanError
+        If ``points`` is empty, not ``(N, 2)`` or not finite.
+    """
+    cfg = config or PerceptionConfig.from_lidar()
+    q = _check(points, "points")
+    if len(q) == 0:
+        raise ScanError("points: cannot fit a squircle to an empty cluster", "points")
+    vw = None if views is None else _check(views, "views")
+    if vw is not None and len(vw) != len(q):
+        raise ScanError(f"views: expected {len(q)} rows (one per point), got {len(vw)}", "views")
+    fr = np.zeros((0, 2)) if free is None else _check(free, "free")
+    qs = _subsample(q, _MAX_POINTS)
+    vs = None if vw is None else _subsample(vw, _MAX_POINTS)
+    fs = _subsample(fr, _MAX_FREE)
+    if len(q) < 3:  # too few points for a shape: a min_unseen square behind them
+        c = q.mean(axis=0)
+        if vw is not None:
+            n = vw.mean(axis=0)
+            nn = np.linalg.norm(n)
+            c = c + (n / nn if nn > 0 else 0.0) * cfg.min_unseen / 2
+        p = np.array([c[0], c[1], math.log(cfg.min_unseen / 2), math.log(cfg.min_unseen / 2), 0.0, 0.5])
+        p = _contain(p, q, cfg.inside_tol)
+        return Fit(_to_squircle(p), 0.0, False, np.arange(len(q)))
+    best = None
+    for seed in _seeds(qs, vs, cfg):
+        out = _solve(seed, qs, fs, cfg)
+        if out is None:
+            continue
+        x, rms, pen = out
+        cost = rms * rms * len(qs) + pen
+        # fits of comparable point error: the one keeping free space truthful wins
+        if best is None or cost < best[3] * 0.999:
+            best = (x, rms, pen, cost)
+    if best is None:
+        x, rms = _seeds(qs, vs, cfg)[0], float("inf")
+    else:
+        x, rms = best[0], best[1]
+    x, closed = _complete(x, qs, vs, cfg)
+    x = _contain(x, q, cfg.inside_tol)
+    return Fit(_to_squircle(x), rms if math.isfinite(rms) else 1.0, closed, np.arange(len(q)))
+
+
+def _check(a, name: str) -> np.ndarray:
+    try:
+        arr = np.asarray(a, dtype=float)
+    except (TypeError, ValueError):
+        raise ScanError(f"{name}: expected an (N, 2) array of numbers", name) from None
+    if arr.ndim != 2 or arr.shape[1] != 2:
+        if arr.size == 0:
+            return np.zeros((0, 2))
+        raise ScanError(f"{name}: expected shape (N, 2), got {arr.shape}", name)
+    if not np.all(np.isfinite(arr)):
+        raise ScanError(f"{name}: contains non-finite values", name)
+    return arr
+
+
+def _best_cut(points: np.ndarray, min_piece: int):
+    (cx, cy), _, ang = cv2.minAreaRect(points.astype(np.float32))
+    t = math.radians(ang)
+    c, s = math.cos(t), math.sin(t)
+    dx, dy = points[:, 0] - cx, points[:, 1] - cy
+    best = None
+    for coord in (dx * c + dy * s, dy * c - dx * s):
+        for qt in np.linspace(0.1, 0.9, 17):
+            cut = np.quantile(coord, qt)
+            left = coord <= cut
+            nl = int(left.sum())
+            if nl < min_piece or len(points) - nl < min_piece:
+                continue
+            cost = nl * rect_error(points[left]) + (len(points) - nl) * rect_error(points[~left])
+            if best is None or cost < best[0]:
+                best = (cost, left)
+    return best
+
+
+def _split(points: np.ndarray, idx: np.ndarray, tol: float, min_piece: int, depth: int) -> list[np.ndarray]:
+    sub = points[idx]
+    if depth == 0 or len(idx) < 2 * min_piece or rect_error(sub) <= tol:
+        return [idx]
+    cut = _best_cut(sub, min_piece)
+    if cut is None:
+        return [idx]
+    cost, left = cut
+    if cost >= 0.7 * len(idx) * rect_error(sub):  # not a clear improvement: keep it whole
+        return [idx]
+    return (_split(points, idx[left], tol, min_piece, depth - 1)
+            + _split(points, idx[~left], tol, min_piece, depth - 1))
+
+
+def fit_cluster(points, *, views=None, free=None, config: PerceptionConfig | None = None,
+                max_pieces: int = 8, split: bool = True) -> list[Fit]:
+    """Fit a cluster with one squircle, or decompose it into overlapping pieces (section 4.2.1).
+
+    Parameters are those of :func:`fit_squircle`; ``max_pieces`` bounds the decomposition
+    (depth ``log2(max_pieces)``), ``split=False`` forces a single squircle.
+
+    Returns
+    -------
+    list of Fit
+        One fit when its RMS radial error is within ``split_tol`` (or ``split`` is False),
+        else one per piece; ``Fit.indices`` say which points each piece explains.
+    """
+    cfg = config or PerceptionConfig.from_lidar()
+    q = _check(points, "points")
+    vw = None if views is None else _check(views, "views")
+    one = fit_squircle(q, views=vw, free=free, config=cfg)
+    if not split or one.rms <= cfg.split_tol or len(q) < 2 * cfg.min_piece:
+        return [one]
+    depth = max(int(math.log2(max(max_pieces, 1))), 0)
+    parts = _split(q, np.arange(len(q)), cfg.split_tol, cfg.min_piece, depth)
+    if len(parts) <= 1:
+        return [one]
+    fits = []
+    for idx in parts:
+        f = fit_squircle(q[idx], views=None if vw is None else vw[idx], free=free, config=cfg)
+        fits.append(Fit(f.squircle, f.rms, f.closed, idx))
+    return fits
+
+
+def inflate(sq: Squircle, r: float, samples: int = 96) -> Squircle:
+    """A squircle containing ``sq`` grown by ``r >= 0`` (same centre, rotation and ``s``).
+
+    Extents grow by ``2 k r``; ``k >= 1`` increases by 3 % until ``samples`` boundary points of
+    the candidate are at least ``r`` from ``sq`` (distances to ``4 samples`` boundary points
+    of ``sq``, minus half their spacing, a lower bound of the true distance). A fast variant of
+    :meth:`navigation.Squircle.grow` for per-scan use.
+    """
+    r = float(r)
+    if not math.isfinite(r) or r < 0:
+        raise ValueError(f"inflate radius must be finite and >= 0, got {r}")
+    if r == 0:
+        return sq
+    ref = sq.boundary_points(4 * samples)
+    spacing = float(np.max(np.linalg.norm(ref - np.roll(ref, 1, axis=0), axis=1)))
+    k = 1.0
+    for _ in range(80):
+        ext = 2 * k * r + 2e-9
+        cand = Squircle(sq.center, sq.width + ext, sq.height + ext, sq.theta, sq.s)
+        b = cand.boundary_points(samples)
+        d = np.sqrt(((b[:, None, :] - ref[None, :, :]) ** 2).sum(-1).min(axis=1))
+        if float(d.min()) - spacing / 2 >= r:
+            return cand
+        k *= 1.03
+    return cand  # pragma: no cover

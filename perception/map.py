@@ -1,0 +1,784 @@
+"""``ObstacleMap``: the one stateful object of the perception layer (paper 001 sections 3, 4.1.2).
+
+The map starts knowing only the workspace and grows from scans:
+
+1. **Ingestion** (:mod:`perception.ingest`): a scan and the pose at its stamp become world
+   points; bad messages are rejected with a :class:`~perception.errors.ScanError` (logged), NaN
+   beams are trimmed (logged). Returns within ``ws_band`` of the workspace boundary are the
+   boundary itself and are dropped.
+2. **Evidence**: returns are averaged in ``voxel`` cells (with the directions they were seen
+   from); the beams' paths, up to ``free_margin`` before their returns (``range_max`` for no
+   return), mark ``free_cell`` cells as free.
+3. **Clustering** (incremental): a new cell joins every cell within ``link`` (k-d tree) and the
+   cells of its neighbouring beams when the range discontinuity between them is below the
+   breakpoint rule (:meth:`PerceptionConfig.breakpoint`); clusters that become connected merge.
+4. **Refit** of a cluster only when its data contradicts its estimates: a new cell more than
+   ``refit_tol`` outside them, or a newly free cell more than ``free_tol`` inside them (so the
+   same scan processed twice changes nothing). The cluster is fitted by
+   :func:`perception.fit.fit_cluster` (one squircle or a decomposition), extended through the
+   workspace boundary when it touches it (walls on the boundary).
+5. **Clearances**: an estimate is trimmed (the face towards the disc moved back, the far side
+   kept) so that, inflated, it neither contains the robot's position (robot disc kept clear)
+   nor reaches into a region disc; an estimate that cannot be trimmed is removed, logged.
+6. **Forest check**: the inflated estimates (grown by the robot radius with
+   :func:`perception.fit.inflate`) with the workspace shrunk by the radius must be accepted by
+   :func:`navigation.build_forest`. The check runs on the changed estimates and everything
+   near them (bounding circles within ``min_gap``), which is equivalent to checking the whole
+   map because the untouched part was accepted before. A :class:`~navigation.ForestError` is
+   repaired conservatively: a too-close or shallow pair is grown by 3 cm per try, a cycle is
+   broken by merging the two closest members into one squircle covering both, after three
+   tries a pair is merged; if repairs fail the update of those estimates is reverted (logged).
+
+Every update returns a :class:`MapUpdate` listing the added, updated and removed estimate ids.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+from navigation.errors import ForestError
+from navigation.forest import Forest, build_forest
+from navigation.geometry import Squircle
+
+from .config import PerceptionConfig
+from .errors import PoseJumpError, ScanError, StampError
+from .fit import Fit, fit_cluster, fit_squircle, gauge, inflate, radial_error
+from .ingest import Scan, parse_points, parse_pose, parse_scan
+
+__all__ = ["Estimate", "MapUpdate", "ObstacleMap"]
+
+log = logging.getLogger("perception")
+
+_MAX_CELL_COUNT = 50  # returns averaged per cell (later ones are ignored: bounded work)
+_REPAIR_STEPS = 16
+_GROW_STEP = 0.03
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Estimate:
+    """One obstacle estimate.
+
+    Attributes
+    ----------
+    id : int
+        Stable identifier (kept while the estimate is refined).
+    squircle : Squircle
+        The estimate of the obstacle itself.
+    inflated : Squircle
+        ``squircle`` grown by the robot radius (what navigation uses).
+    cluster : int
+        Cluster the estimate explains (several estimates: a decomposed cluster).
+    rms : float
+        RMS radial error of its fit (m).
+    closed : bool
+        Every face was seen (no conservative completion needed).
+    """
+
+    id: int
+    squircle: Squircle
+    inflated: Squircle
+    cluster: int
+    rms: float = 0.0
+    closed: bool = False
+
+
+@dataclass(frozen=True, slots=True)
+class MapUpdate:
+    """What one update changed (for incremental navigation updates).
+
+    Attributes
+    ----------
+    stamp : float or None
+    added, updated, removed : tuple of int
+        Estimate ids.
+    points : int
+        Returns used (after trimming).
+    trimmed : int
+        Beams or points dropped (non-finite, too short, on the workspace boundary, outside).
+    notes : tuple of str
+        Logged reasons (trims, repairs, reverts).
+    """
+
+    stamp: float | None
+    added: tuple[int, ...] = ()
+    updated: tuple[int, ...] = ()
+    removed: tuple[int, ...] = ()
+    points: int = 0
+    trimmed: int = 0
+    notes: tuple[str, ...] = ()
+
+    @property
+    def changed(self) -> bool:
+        """True when any estimate was added, updated or removed."""
+        return bool(self.added or self.updated or self.removed)
+
+
+def _same(a: Squircle, b: Squircle) -> bool:
+    return (a.center == b.center and a.width == b.width and a.height == b.height and a.theta == b.theta
+            and a.s == b.s)
+
+
+def _scale(sq: Squircle, d: float) -> Squircle:
+    """``sq`` with both extents grown by ``2 d`` (a superset for ``d > 0``)."""
+    return Squircle(sq.center, sq.width + 2 * d, sq.height + 2 * d, sq.theta, sq.s)
+
+
+@dataclass
+class _Cluster:
+    single: bool = False  # decomposition disabled (after a merge repair)
+    ids: list = field(default_factory=list)
+
+
+class ObstacleMap:
+    """Online obstacle map built from lidar scans (see the module docstring).
+
+    Parameters
+    ----------
+    workspace : Squircle
+        Known outer boundary.
+    robot_radius : float
+        Inflation radius (robot disc).
+    regions : iterable of (center, radius) or mapping name -> Region, optional
+        Regions of interest; estimates are trimmed so that the region disc grown by the robot
+        radius stays free.
+    config : PerceptionConfig, optional
+        Thresholds (default: :meth:`PerceptionConfig.from_lidar` with its defaults).
+    beams : int, optional
+        Expected beam count of ``scan`` messages; others are rejected.
+
+    Build it from a world with :meth:`from_world`.
+    """
+
+    def __init__(self, workspace: Squircle, robot_radius: float, *, regions=(), config: PerceptionConfig | None = None,
+                 beams: int | None = None):
+        if not isinstance(workspace, Squircle):
+            raise ScanError(f"workspace must be a Squircle, got {type(workspace).__name__}", "workspace")
+        r = float(robot_radius)
+        if not (math.isfinite(r) and r >= 0):
+            raise ScanError(f"robot_radius must be finite and >= 0, got {robot_radius!r}", "robot_radius")
+        self.workspace = workspace
+        self.radius = r
+        self.config = config or PerceptionConfig.from_lidar()
+        self.beams = beams
+        if isinstance(regions, Mapping):
+            regions = [(reg.center, reg.radius) for reg in regions.values()]
+        self.regions = [(np.asarray(c, dtype=float).reshape(2), float(rr)) for c, rr in regions]
+        self.cspace_workspace = workspace.grow(-r) if r > 0 else workspace
+        cfg = self.config
+        bp = workspace.boundary_points(512)
+        self._lo = bp.min(axis=0) - 0.1
+        hi = bp.max(axis=0) + 0.1
+        self._shape = tuple(int(v) for v in np.ceil((hi - self._lo) / cfg.voxel)) 
+        self._fshape = tuple(int(v) for v in np.ceil((hi - self._lo) / cfg.free_cell))
+        self._n = np.zeros(self._shape, np.int32)
+        self._sum = np.zeros(self._shape + (2,))
+        self._view = np.zeros(self._shape + (2,))
+        self._lab = np.full(self._shape, -1, np.int32)
+        self._free = np.zeros(self._fshape, bool)
+        self._est: dict[int, Estimate] = {}
+        self._clusters: dict[int, _Cluster] = {}
+        self._next_id = 0
+        self._next_label = 0
+        self._attempts: dict[tuple, int] = {}
+        self._alias: dict[int, int] = {}
+        self.last_stamp: float | None = None
+        self.last_pose: tuple[float, float, float] | None = None
+        self.scans = 0
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def from_world(cls, world, config: PerceptionConfig | None = None, **overrides) -> "ObstacleMap":
+        """A map for ``world`` (a :class:`navigation.World`): its workspace, robot radius,
+        regions and lidar (thresholds by :meth:`PerceptionConfig.from_lidar`, ``overrides``
+        replacing any of them). Known obstacles are not added (the map starts empty)."""
+        cfg = config or PerceptionConfig.from_lidar(world.lidar, **overrides)
+        return cls(world.workspace, world.robot.radius, regions=world.regions, config=cfg, beams=world.lidar.beams)
+
+    # ------------------------------------------------------------------ read access
+    def __len__(self) -> int:
+        return len(self._est)
+
+    @property
+    def estimates(self) -> dict[int, Estimate]:
+        """Current estimates by id (a copy)."""
+        return dict(self._est)
+
+    def obstacles(self) -> list[Squircle]:
+        """Estimated obstacles (not inflated), in id order."""
+        return [self._est[k].squircle for k in sorted(self._est)]
+
+    def inflated(self) -> list[Squircle]:
+        """Estimates grown by the robot radius, in id order (the configuration-space obstacles)."""
+        return [self._est[k].inflated for k in sorted(self._est)]
+
+    def forest(self) -> Forest:
+        """:func:`navigation.build_forest` of :meth:`inflated` in the workspace shrunk by the
+        robot radius (always accepted: the map keeps it so)."""
+        cfg = self.config
+        return build_forest(self.cspace_workspace, self.inflated(), min_gap=cfg.min_gap, min_overlap=cfg.min_overlap)
+
+    def to_message(self, stamp: float | None = None) -> dict:
+        """The bus ``obstacles`` message ``{"stamp", "obstacles": [squircle, ...]}`` (not inflated)."""
+        return {"stamp": self.last_stamp if stamp is None else float(stamp),
+                "obstacles": [sq.to_dict() for sq in self.obstacles()]}
+
+    def point_cloud(self) -> tuple[np.ndarray, np.ndarray]:
+        """Averaged return points ``(N, 2)`` and their cluster labels ``(N,)``."""
+        idx = np.nonzero(self._n > 0)
+        return self._sum[idx] / self._n[idx][:, None], self._lab[idx]
+
+    # ------------------------------------------------------------------ input checks
+    def _check_stamp_pose(self, stamp: float, pose_stamp: float | None, pose, now: float | None) -> None:
+        cfg = self.config
+        if pose_stamp is not None and abs(pose_stamp - stamp) > cfg.max_stamp_skew:
+            raise StampError(f"scan stamp {stamp:.3f} does not match the pose stamp {pose_stamp:.3f} "
+                             f"(more than max_stamp_skew = {cfg.max_stamp_skew:g} s apart)", "stamp")
+        if self.last_stamp is not None and stamp < self.last_stamp:
+            raise StampError(f"stale stamp {stamp:.3f}: older than the last processed {self.last_stamp:.3f}", "stamp")
+        if now is not None and stamp > now + cfg.max_future:
+            raise StampError(f"stamp {stamp:.3f} is in the future (now = {now:.3f}, "
+                             f"max_future = {cfg.max_future:g} s)", "stamp")
+        if pose is not None:
+            if not self.workspace.beta(np.array(pose[:2])) < 0:
+                raise PoseJumpError(f"pose ({pose[0]:.3f}, {pose[1]:.3f}) is outside the workspace", "pose")
+            if self.last_pose is not None:
+                jump = math.dist(pose[:2], self.last_pose[:2])
+                if jump > cfg.max_pose_jump:
+                    raise PoseJumpError(f"pose ({pose[0]:.3f}, {pose[1]:.3f}) is {jump:.3f} m from the last "
+                                        f"accepted pose (more than max_pose_jump = {cfg.max_pose_jump:g} m)", "pose")
+
+    def _reject(self, err: ScanError):
+        log.warning("perception: rejected input: %s", err)
+        raise err
+
+    # ------------------------------------------------------------------ public updates
+    def update_scan(self, scan, pose, *, now: float | None = None) -> MapUpdate:
+        """Integrate one ``scan`` message taken at ``pose`` (pose message or ``(x, y, theta)``).
+
+        Parameters
+        ----------
+        scan : mapping, str or bytes
+            Bus ``scan`` message.
+        pose : mapping or sequence
+            The pose at the scan's stamp; a pose message's stamp must match the scan's within
+            ``max_stamp_skew``.
+        now : float, optional
+            Current time; stamps more than ``max_future`` ahead are rejected.
+
+        Returns
+        -------
+        MapUpdate
+
+        Raises
+        ------
+        ScanError
+            Malformed message, empty scan, wrong beam count (logged; the map is unchanged).
+        StampError
+            Stale, future or mismatched stamp.
+        PoseJumpError
+            Pose outside the workspace or farther than ``max_pose_jump`` from the last one.
+        """
+        try:
+            pose_stamp, p = parse_pose(pose)
+            sc = parse_scan(scan, p, beams=self.beams)
+            self._check_stamp_pose(sc.stamp, pose_stamp, p, now)
+        except ScanError as err:
+            self._reject(err)
+        notes = []
+        if sc.dropped:
+            notes.append(f"trimmed {sc.dropped} invalid beam(s) (NaN or below range_min)")
+            log.info("perception: scan %.3f: %s", sc.stamp, notes[-1])
+        return self._integrate(sc.stamp, p, sc.points, sc, notes, sc.dropped)
+
+    def update_points(self, message, pose=None, *, now: float | None = None) -> MapUpdate:
+        """Integrate a bus ``points`` message (world-frame returns).
+
+        ``pose`` (the sensor pose, optional) tells which side the points were seen from; without
+        it the last scan's pose is used. Points carry no free-space evidence.
+
+        Raises
+        ------
+        ScanError, StampError, PoseJumpError
+            As :meth:`update_scan`.
+        """
+        try:
+            stamp, pts, dropped = parse_points(message)
+            pose_stamp, p = (None, self.last_pose) if pose is None else parse_pose(pose)
+            self._check_stamp_pose(stamp, pose_stamp, p if pose is not None else None, now)
+        except ScanError as err:
+            self._reject(err)
+        notes = []
+        if dropped:
+            notes.append(f"trimmed {dropped} non-finite point(s)")
+            log.info("perception: points %.3f: %s", stamp, notes[-1])
+        return self._integrate(stamp, p, pts, None, notes, dropped)
+
+    # ------------------------------------------------------------------ the update
+    def _cells(self, q: np.ndarray, size: float, shape) -> tuple[np.ndarray, np.ndarray]:
+        ij = np.floor((q - self._lo) / size).astype(np.int64)
+        ok = (ij[:, 0] >= 0) & (ij[:, 1] >= 0) & (ij[:, 0] < shape[0]) & (ij[:, 1] < shape[1])
+        return ij, ok
+
+    def _integrate(self, stamp: float, pose, pts: np.ndarray, scan: Scan | None, notes: list, trimmed: int) -> MapUpdate:
+        cfg = self.config
+        # --- trim: the workspace boundary itself, returns inside the robot disc, off-grid points
+        keep = np.ones(len(pts), bool)
+        if len(pts):
+            keep &= radial_error(self.workspace, pts) < -cfg.ws_band
+            if pose is not None:
+                keep &= np.hypot(pts[:, 0] - pose[0], pts[:, 1] - pose[1]) > self.radius
+        beam_of = np.nonzero(scan.hit)[0] if scan is not None else None
+        pts_k = pts[keep]
+        if beam_of is not None:
+            beam_of = beam_of[keep]
+        n_trim = int((~keep).sum())
+        # --- free-space evidence (beams)
+        new_free = np.zeros((0, 2))
+        if scan is not None:
+            new_free = self._mark_free(scan)
+        # --- occupied cells
+        new_cells = np.zeros((0, 2), np.int64)
+        scan_cell = None
+        if len(pts_k):
+            ij, ok = self._cells(pts_k, cfg.voxel, self._shape)
+            n_trim += int((~ok).sum())
+            ij, pts_k = ij[ok], pts_k[ok]
+            if beam_of is not None:
+                beam_of = beam_of[ok]
+            fresh = self._n[ij[:, 0], ij[:, 1]] == 0
+            if pose is not None:
+                vd = pts_k - np.asarray(pose[:2])
+                vd /= np.maximum(np.linalg.norm(vd, axis=1, keepdims=True), 1e-12)
+            else:
+                vd = np.zeros_like(pts_k)
+            under = self._n[ij[:, 0], ij[:, 1]] < _MAX_CELL_COUNT
+            sel = under
+            np.add.at(self._n, (ij[sel, 0], ij[sel, 1]), 1)
+            np.add.at(self._sum, (ij[sel, 0], ij[sel, 1]), pts_k[sel])
+            np.add.at(self._view, (ij[sel, 0], ij[sel, 1]), vd[sel])
+            new_cells = np.unique(ij[fresh], axis=0)
+            scan_cell = ij
+        touched = self._cluster_new(new_cells, scan_cell, beam_of, scan)
+        # --- which clusters need a refit
+        refit: set[int] = set(touched["new"]) | set(touched["merged"])
+        for lab in touched["grown"]:
+            if lab in refit:
+                continue
+            cells = touched["cells"][lab]
+            q = self._sum[cells[:, 0], cells[:, 1]] / self._n[cells[:, 0], cells[:, 1]][:, None]
+            err = self._cluster_error(lab, q)
+            if err > cfg.refit_tol:
+                refit.add(lab)
+        if len(new_free) and self._est:
+            refit |= self._contradicted(new_free, pose)
+        proposed = dict(self._est)
+        changed: set[int] = set()
+        removed: set[int] = set()
+        for lab in sorted(refit):
+            self._refit(lab, proposed, changed, removed, pose)
+        # --- clearances of the robot disc (it moved) and of the regions
+        if pose is not None:
+            self._clear_robot(pose, proposed, changed, removed, notes)
+        update = self._commit(stamp, proposed, changed, removed, notes, pose)
+        self.last_stamp = stamp
+        if pose is not None and scan is not None:
+            self.last_pose = tuple(pose)
+        self.scans += 1
+        return MapUpdate(stamp, update[0], update[1], update[2], len(pts_k), trimmed + n_trim, tuple(notes))
+
+    def _mark_free(self, scan: Scan) -> np.ndarray:
+        """Mark the cells the beams crossed as free; return the centres of newly free cells."""
+        cfg = self.config
+        valid = ~np.isnan(scan.ranges)
+        L = np.where(scan.hit, scan.ranges - cfg.free_margin, scan.range_max)[valid]
+        ang = scan.angles[valid]
+        step = cfg.free_cell / 2
+        t = np.arange(step, max(float(L.max(initial=0.0)), 0.0), step)
+        if not len(t) or not len(L):
+            return np.zeros((0, 2))
+        m = t[None, :] < L[:, None]
+        tt = np.broadcast_to(t, m.shape)[m]
+        aa = np.broadcast_to(ang[:, None], m.shape)[m]
+        q = np.stack((scan.pose[0] + tt * np.cos(aa), scan.pose[1] + tt * np.sin(aa)), axis=1)
+        ij, ok = self._cells(q, cfg.free_cell, self._fshape)
+        ij = ij[ok]
+        lin = np.unique(ij[:, 0] * self._fshape[1] + ij[:, 1])
+        fi, fj = lin // self._fshape[1], lin % self._fshape[1]
+        fresh = ~self._free[fi, fj]
+        self._free[fi, fj] = True
+        fi, fj = fi[fresh], fj[fresh]
+        return self._lo + (np.stack((fi, fj), axis=1) + 0.5) * cfg.free_cell
+
+    def _cluster_new(self, new_cells: np.ndarray, scan_cell, beam_of, scan) -> dict:
+        """Give labels to new cells (joining, possibly merging, clusters). Returns the labels of
+        ``new`` clusters, ``merged`` clusters, ``grown`` clusters and their new cells."""
+        cfg = self.config
+        out = {"new": [], "merged": [], "grown": [], "cells": {}}
+        if not len(new_cells):
+            return out
+        k = int(math.ceil(cfg.link / cfg.voxel)) + 1
+        i0, j0 = np.maximum(new_cells.min(axis=0) - k, 0)
+        i1, j1 = np.minimum(new_cells.max(axis=0) + k + 1, self._shape)
+        sub = self._n[i0:i1, j0:j1] > 0
+        si, sj = np.nonzero(sub)
+        si, sj = si + i0, sj + j0
+        q = self._sum[si, sj] / self._n[si, sj][:, None]
+        labs = self._lab[si, sj]
+        n = len(si)
+        pairs = cKDTree(q).query_pairs(cfg.link, output_type="ndarray")
+        edges = [pairs] if len(pairs) else []
+        # along-scan continuity: consecutive beams without a range discontinuity
+        if scan is not None and beam_of is not None and len(beam_of) > 1:
+            loc = {(int(a), int(b)): t for t, (a, b) in enumerate(zip(si, sj))}
+            r = scan.ranges[beam_of]
+            pts_b = np.stack((scan.pose[0] + r * np.cos(scan.angles[beam_of]),
+                              scan.pose[1] + r * np.sin(scan.angles[beam_of])), axis=1)
+            d = np.linalg.norm(np.diff(pts_b, axis=0), axis=1)
+            adj = (np.diff(beam_of) == 1) & (d <= cfg.breakpoint(np.minimum(r[:-1], r[1:])))
+            extra = []
+            for t in np.nonzero(adj)[0]:
+                a = loc.get((int(scan_cell[t, 0]), int(scan_cell[t, 1])))
+                b = loc.get((int(scan_cell[t + 1, 0]), int(scan_cell[t + 1, 1])))
+                if a is not None and b is not None and a != b:
+                    extra.append((a, b))
+            if extra:
+                edges.append(np.array(extra))
+        if edges:
+            e = np.concatenate(edges)
+            g = coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n))
+            _, comp = connected_components(g, directed=False)
+        else:
+            comp = np.arange(n)
+        is_new = labs < 0
+        for c in np.unique(comp[is_new]):
+            members = comp == c
+            old = sorted(set(int(v) for v in labs[members]) - {-1})
+            cells = np.stack((si[members & is_new], sj[members & is_new]), axis=1)
+            if not old:
+                lab = self._next_label
+                self._next_label += 1
+                self._clusters[lab] = _Cluster()
+                out["new"].append(lab)
+            else:
+                lab = old[0]
+                if len(old) > 1:
+                    self._merge_labels(lab, old[1:])
+                    out["merged"].append(lab)
+                else:
+                    out["grown"].append(lab)
+            self._lab[cells[:, 0], cells[:, 1]] = lab
+            prev = out["cells"].get(lab)
+            out["cells"][lab] = cells if prev is None else np.concatenate((prev, cells))
+        cells: dict[int, np.ndarray] = {}
+        for lab, c in out["cells"].items():
+            r = self._resolve(lab)
+            cells[r] = c if r not in cells else np.concatenate((cells[r], c))
+        out["cells"] = cells
+        out["new"] = sorted({self._resolve(lab) for lab in out["new"]})
+        out["merged"] = sorted({self._resolve(lab) for lab in out["merged"]} - set(out["new"]))
+        out["grown"] = sorted({self._resolve(lab) for lab in out["grown"]} - set(out["merged"]) - set(out["new"]))
+        return out
+
+    def _merge_labels(self, keep: int, others: Iterable[int]) -> None:
+        others = list(others)
+        mask = np.isin(self._lab, others)
+        self._lab[mask] = keep
+        for o in others:
+            self._alias[o] = keep
+            cl = self._clusters.pop(o, None)
+            if cl is not None:
+                self._clusters[keep].ids.extend(cl.ids)
+                self._clusters[keep].single |= cl.single
+
+    def _resolve(self, lab: int) -> int:
+        while lab in self._alias:
+            lab = self._alias[lab]
+        return lab
+
+    def _cluster_error(self, lab: int, q: np.ndarray) -> float:
+        """Largest distance of points ``q`` outside the union of the cluster's estimates."""
+        ids = [i for i in self._clusters[lab].ids if i in self._est]
+        if not ids:
+            return math.inf
+        err = np.min([radial_error(self._est[i].squircle, q) for i in ids], axis=0)
+        return float(err.max())
+
+    def _contradicted(self, free: np.ndarray, pose) -> set[int]:
+        """Clusters with an estimate containing a newly free cell deeper than ``free_tol``."""
+        cfg = self.config
+        out = set()
+        lo, hi = free.min(axis=0), free.max(axis=0)
+        for e in self._est.values():
+            sq = e.squircle
+            rb = sq.bounding_radius
+            c = np.asarray(sq.center)
+            if np.any(c + rb < lo) or np.any(c - rb > hi) or e.cluster in out:
+                continue
+            near = free[np.hypot(free[:, 0] - c[0], free[:, 1] - c[1]) < rb]
+            if len(near) and float(radial_error(sq, near).min()) < -cfg.free_tol:
+                out.add(e.cluster)
+        return out
+
+    def _cluster_data(self, lab: int):
+        cfg = self.config
+        idx = np.nonzero(self._lab == lab)
+        n = self._n[idx][:, None]
+        q = self._sum[idx] / n
+        v = self._view[idx]
+        v = v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-12)
+        # free cells around the cluster
+        pad = cfg.min_unseen + 0.05
+        lo = np.floor((q.min(axis=0) - pad - self._lo) / cfg.free_cell).astype(int)
+        hi = np.ceil((q.max(axis=0) + pad - self._lo) / cfg.free_cell).astype(int)
+        lo = np.maximum(lo, 0)
+        hi = np.minimum(hi, self._fshape)
+        fi, fj = np.nonzero(self._free[lo[0]:hi[0], lo[1]:hi[1]])
+        free = self._lo + (np.stack((fi + lo[0], fj + lo[1]), axis=1) + 0.5) * cfg.free_cell
+        if len(free) and len(q):
+            # a free cell holding returns is not evidence (grazing beams)
+            d, _ = cKDTree(q).query(free, distance_upper_bound=cfg.free_cell)
+            free = free[~np.isfinite(d)]
+        # a cluster touching the workspace boundary continues through it
+        ws = self.workspace
+        e_ws = radial_error(ws, q)
+        near = e_ws > -cfg.ws_touch
+        if np.any(near):
+            c = np.asarray(ws.center)
+            g = gauge(ws, q[near])
+            u = q[near] - c
+            nu = u / np.maximum(np.linalg.norm(u, axis=1, keepdims=True), 1e-12)
+            virt = c + u / g[:, None] + nu * (cfg.ws_touch + 0.03)
+            q = np.concatenate((q, virt))
+            v = np.concatenate((v, nu))
+        return q, v, free
+
+    def _refit(self, lab: int, proposed: dict, changed: set, removed: set, pose) -> None:
+        cl = self._clusters.get(lab)
+        if cl is None:
+            return
+        q, v, free = self._cluster_data(lab)
+        if not len(q):
+            return
+        fits = fit_cluster(q, views=v, free=free, config=self.config, split=not cl.single)
+        old = [i for i in cl.ids if i in proposed]
+        new_ids = []
+        for k, f in enumerate(fits):
+            sq = f.squircle
+            if k < len(old):
+                i = old[k]
+                if _same(proposed[i].squircle, sq):
+                    new_ids.append(i)
+                    continue
+            else:
+                i = self._next_id
+                self._next_id += 1
+            proposed[i] = Estimate(i, sq, inflate(sq, self.radius), lab, f.rms, f.closed)
+            changed.add(i)
+            new_ids.append(i)
+        for i in old[len(fits):]:
+            proposed.pop(i, None)
+            removed.add(i)
+            changed.discard(i)
+        cl.ids = new_ids
+        # regions: keep their discs (grown by the radius) free
+        for i in list(new_ids):
+            if i in changed:
+                for c, rr in self.regions:
+                    self._trim(i, c, rr + self.radius, proposed, changed, removed, f"region at {c.tolist()}")
+
+    def _clear_robot(self, pose, proposed, changed, removed, notes) -> None:
+        p = np.asarray(pose[:2], dtype=float)
+        for i in list(proposed):
+            e = proposed[i]
+            if math.dist(e.inflated.center, p) > e.inflated.bounding_radius + self.radius:
+                continue
+            if e.inflated.beta(p) <= 0 or e.squircle.distance(p) < self.radius + self.config.clearance_margin:
+                msg = self._trim(i, p, self.radius, proposed, changed, removed, "robot disc")
+                if msg:
+                    notes.append(msg)
+
+    def _trim(self, i: int, p: np.ndarray, clearance: float, proposed, changed, removed, what: str) -> str:
+        """Move the face of estimate ``i`` facing ``p`` back until the inflated estimate keeps
+        ``clearance`` (plus ``clearance_margin``) from ``p``; remove it if that leaves nothing."""
+        cfg = self.config
+        e = proposed.get(i)
+        if e is None:
+            return ""
+        sq = e.squircle
+        need = clearance + cfg.clearance_margin
+        if math.dist(sq.center, p) > sq.bounding_radius + need:
+            return ""
+        d0 = float(sq.distance(p))
+        if d0 >= need and e.inflated.beta(p) > 0:
+            return ""
+        for _ in range(6):
+            th = sq.theta
+            c, s = math.cos(th), math.sin(th)
+            dx, dy = p[0] - sq.center[0], p[1] - sq.center[1]
+            u = np.array([dx * c + dy * s, dy * c - dx * s])
+            h = np.array([sq.width / 2, sq.height / 2])
+            k = int(np.argmax(np.abs(u) / h))
+            sgn = 1.0 if u[k] >= 0 else -1.0
+            face = abs(u[k]) - need - 0.01  # new position of the face towards p
+            newh = (face + h[k]) / 2
+            if newh * 2 < cfg.min_extent:
+                proposed.pop(i, None)
+                changed.discard(i)
+                removed.add(i)
+                cl = self._clusters.get(e.cluster)
+                if cl is not None and i in cl.ids:
+                    cl.ids.remove(i)
+                msg = f"removed estimate {i}: it cannot be trimmed clear of the {what}"
+                log.warning("perception: %s", msg)
+                return msg
+            shift = sgn * (face - h[k]) / 2
+            axis = np.array([c, s]) if k == 0 else np.array([-s, c])
+            ctr = np.asarray(sq.center) + axis * shift
+            w, hh = (2 * newh, sq.height) if k == 0 else (sq.width, 2 * newh)
+            sq = Squircle((float(ctr[0]), float(ctr[1])), w, hh, th, sq.s)
+            inf = inflate(sq, self.radius)
+            if float(sq.distance(p)) >= need and inf.beta(p) > 0:
+                break
+        else:
+            inf = inflate(sq, self.radius)
+        proposed[i] = Estimate(i, sq, inf, e.cluster, e.rms, e.closed)
+        changed.add(i)
+        msg = f"trimmed estimate {i} clear of the {what}"
+        log.info("perception: %s", msg)
+        return msg
+
+    # ------------------------------------------------------------------ forest check and repair
+    def _subset(self, proposed: dict, seeds: set) -> list[int]:
+        """Ids of the estimates connected to ``seeds`` by bounding-circle proximity."""
+        ids = sorted(proposed)
+        if not seeds:
+            return []
+        C = np.array([proposed[i].inflated.center for i in ids])
+        R = np.array([proposed[i].inflated.bounding_radius for i in ids])
+        near = np.hypot(C[:, None, 0] - C[None, :, 0], C[:, None, 1] - C[None, :, 1]) <= (
+            R[:, None] + R[None, :] + self.config.min_gap + 0.01)
+        _, comp = connected_components(coo_matrix(near), directed=False)
+        want = {comp[ids.index(i)] for i in seeds if i in proposed}
+        return [i for k, i in enumerate(ids) if comp[k] in want]
+
+    def _validate(self, proposed: dict, seeds: set):
+        sub = self._subset(proposed, seeds)
+        if not sub:
+            return None, sub
+        cfg = self.config
+        try:
+            build_forest(self.cspace_workspace, [proposed[i].inflated for i in sub], min_gap=cfg.min_gap,
+                         min_overlap=cfg.min_overlap)
+        except ForestError as err:
+            return err, sub
+        return None, sub
+
+    def _set(self, proposed: dict, i: int, sq: Squircle, changed: set, cluster: int | None = None) -> None:
+        e = proposed[i]
+        proposed[i] = Estimate(i, sq, inflate(sq, self.radius), e.cluster if cluster is None else cluster, e.rms, e.closed)
+        changed.add(i)
+
+    def _merge(self, proposed: dict, a: int, b: int, changed: set, removed: set) -> None:
+        ea, eb = proposed[a], proposed[b]
+        pts = np.concatenate((ea.squircle.boundary_points(96), eb.squircle.boundary_points(96)))
+        f = fit_squircle(pts, config=self.config)
+        if ea.cluster != eb.cluster and eb.cluster in self._clusters and ea.cluster in self._clusters:
+            self._merge_labels(ea.cluster, [eb.cluster])
+        cl = self._clusters.get(ea.cluster)
+        if cl is not None:
+            cl.single = True
+            if b in cl.ids:
+                cl.ids.remove(b)
+            if a not in cl.ids:
+                cl.ids.append(a)
+        proposed.pop(b)
+        changed.discard(b)
+        removed.add(b)
+        self._set(proposed, a, f.squircle, changed, ea.cluster)
+
+    def _repair(self, err: ForestError, sub: list[int], proposed: dict, changed: set, removed: set, notes) -> bool:
+        ids = [sub[k] for k in err.obstacles if 0 <= k < len(sub)]
+        ws = -1 in err.obstacles
+        rule = err.rule
+        if not ids:
+            return False
+        if rule == "covers-workspace":
+            for i in ids:
+                proposed.pop(i, None)
+                changed.discard(i)
+                removed.add(i)
+            return True
+        if rule in ("too-close", "shallow-overlap"):
+            key = (rule,) + tuple(sorted(ids)) + ((-1,) if ws else ())
+            n = self._attempts.get(key, 0)
+            self._attempts[key] = n + 1
+            if len(ids) == 2 and n >= 3:
+                self._merge(proposed, ids[0], ids[1], changed, removed)
+                notes.append(f"merged estimates {ids[0]} and {ids[1]} ({rule})")
+                return True
+            i = min(ids, key=lambda k: proposed[k].squircle.area)
+            self._set(proposed, i, _scale(proposed[i].squircle, _GROW_STEP), changed)
+            notes.append(f"grew estimate {i} by {_GROW_STEP} m ({rule})")
+            return True
+        if rule == "cycle" and len(ids) >= 2:
+            best = None
+            for x in range(len(ids)):
+                for y in range(x + 1, len(ids)):
+                    a, b = proposed[ids[x]].squircle, proposed[ids[y]].squircle
+                    d = math.dist(a.center, b.center) - a.bounding_radius - b.bounding_radius
+                    if best is None or d < best[0]:
+                        best = (d, ids[x], ids[y])
+            _, a, b = best
+            self._merge(proposed, a, b, changed, removed)
+            notes.append(f"merged estimates {a} and {b} (cycle)")
+            return True
+        return False
+
+    def _commit(self, stamp, proposed: dict, changed: set, removed: set, notes: list, pose):
+        self._attempts.clear()
+        for _ in range(_REPAIR_STEPS):
+            seeds = {i for i in changed if i in proposed}
+            err, sub = self._validate(proposed, seeds)
+            if err is None:
+                break
+            if not self._repair(err, sub, proposed, changed, removed, notes):
+                break
+            if pose is not None:
+                self._clear_robot(pose, proposed, changed, removed, notes)
+        else:
+            err = ForestError("repairs did not converge")
+        if err is not None:
+            # revert the estimates this update touched (the previous map was accepted)
+            msg = f"reverted estimates {sorted(changed | removed)}: {err}"
+            log.warning("perception: %s", msg)
+            notes.append(msg)
+            for i in changed | removed:
+                if i in self._est:
+                    proposed[i] = self._est[i]
+                else:
+                    proposed.pop(i, None)
+            changed, removed = set(), set()
+        added = tuple(sorted(i for i in changed if i in proposed and i not in self._est))
+        updated = tuple(sorted(i for i in changed if i in proposed and i in self._est
+                               and not _same(self._est[i].squircle, proposed[i].squircle)))
+        gone = tuple(sorted(i for i in removed if i in self._est and i not in proposed))
+        self._est = {i: proposed[i] for i in sorted(proposed)}
+        # keep cluster id lists consistent with the estimates
+        for lab, cl in self._clusters.items():
+            cl.ids = [i for i in dict.fromkeys(cl.ids) if i in self._est and self._resolve(self._est[i].cluster) == lab]
+        for i, e in list(self._est.items()):
+            lab = self._resolve(e.cluster)
+            if lab != e.cluster:
+                e = self._est[i] = Estimate(i, e.squircle, e.inflated, lab, e.rms, e.closed)
+            cl = self._clusters.get(e.cluster)
+            if cl is not None and i not in cl.ids:
+                cl.ids.append(i)
+        return added, updated, gone
