@@ -26,6 +26,7 @@ Every point function accepts ``(2,)`` or ``(N, 2)`` and returns the same kind.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -35,7 +36,7 @@ from ._arrays import as_points, restore
 from ._jet import Jet
 from .errors import WorldError
 
-__all__ = ["Squircle", "pack", "beta_jet", "ray_length_center_jet", "ray_length_jet", "ray_length_packed"]
+__all__ = ["Squircle", "ExactDistance", "pack", "beta_rows", "point_at_rows", "beta_jet", "ray_length_center_jet", "ray_length_jet", "ray_length_packed"]
 
 # Columns of a packed squircle array (see :func:`pack`).
 CX, CY, COS, SIN, HW, HH, S = range(7)
@@ -241,39 +242,13 @@ class Squircle:
     def distance(self, q, samples: int = 256) -> np.ndarray:
         """Signed Euclidean distance to the boundary (negative inside), exact to ~1e-10 m.
 
-        A coarse nearest boundary sample is refined by golden-section search over the
-        boundary parameter.
+        Computed by :class:`ExactDistance` (nearest of at least ``samples`` boundary samples at
+        most 5 cm apart, every near-minimal local minimum refined over the boundary parameter by
+        ten rounds of 16 samples); the samples of a squircle are computed once and cached.
         """
         pts, single = as_points(q)
-        psi = self.boundary_psi(samples)
-        bp = self.point_at(psi)
-        d2 = ((pts[:, None, :] - bp[None, :, :]) ** 2).sum(-1)
-        k = np.argmin(d2, axis=1)
-        step = 2 * np.pi / samples * 4.0
-        lo, hi = psi[k] - step, psi[k] + step
-        g = (math.sqrt(5.0) - 1.0) / 2.0
-
-        def f(t):
-            return ((self.point_at(t) - pts) ** 2).sum(-1)
-
-        a = hi - g * (hi - lo)
-        b = lo + g * (hi - lo)
-        fa, fb = f(a), f(b)
-        for _ in range(48):
-            left = fa < fb
-            hi = np.where(left, b, hi)
-            lo = np.where(left, lo, a)
-            b_new = np.where(left, a, lo + g * (hi - lo))
-            a_new = np.where(left, hi - g * (hi - lo), b)
-            fb_new = np.where(left, fa, np.nan)
-            fa_new = np.where(left, np.nan, fb)
-            need_a = left
-            a, b = a_new, b_new
-            fa = np.where(need_a, f(a), fa_new)
-            fb = np.where(need_a, fb_new, f(b))
-        dist = np.sqrt(np.minimum(np.minimum(fa, fb), d2[np.arange(len(pts)), k]))
-        sign = np.where(self.beta(pts) < 0, -1.0, 1.0)
-        return restore(sign * dist, single)
+        ed = _exact_distance(self, int(samples))
+        return restore(ed.signed(pts, np.zeros(len(pts), dtype=np.intp)), single)
 
     # ------------------------------------------------------------------ inflation
     def grow(self, r: float, samples: int = 720) -> "Squircle":
@@ -320,6 +295,168 @@ def pack(squircles) -> np.ndarray:
         out[i] = (sq.center[0], sq.center[1], math.cos(sq.theta), math.sin(sq.theta),
                   sq.width / 2.0, sq.height / 2.0, sq.s)
     return out
+
+
+def beta_rows(P: np.ndarray, x, y) -> np.ndarray:
+    """``beta`` (eq. 4) of packed rows ``P (..., 7)`` at ``(x, y)`` (plain arrays, broadcasting)."""
+    u, w = _normalised(P, x, y)
+    u2, w2 = u * u, w * w
+    root = np.sqrt(np.maximum(u2 * u2 + w2 * w2 + (2.0 - 4.0 * P[..., S] ** 2) * u2 * w2, 0.0))
+    return 0.5 * (u2 + w2 + root) - 1.0
+
+
+def point_at_rows(P: np.ndarray, psi: np.ndarray) -> np.ndarray:
+    """Boundary points ``(K, m, 2)`` of rows ``P (K, 7)`` at normalised angles ``psi (K, m)``
+    (the parametrisation of :meth:`Squircle.point_at`)."""
+    return np.stack(_point_xy_rows(P, psi), axis=-1)
+
+
+def _point_xy_rows(P: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Coordinates ``x, y (K, m)`` of :func:`point_at_rows`."""
+    ux, uy = np.cos(psi), np.sin(psi)
+    m = ux * uy
+    s2 = (P[:, S] ** 2)[:, None]
+    rho = np.sqrt(2.0 / (1.0 + np.sqrt(np.maximum(1.0 - 4.0 * s2 * m * m, 0.0))))
+    lx = rho * ux * P[:, HW, None]
+    ly = rho * uy * P[:, HH, None]
+    c, sn = P[:, COS, None], P[:, SIN, None]
+    return P[:, CX, None] + c * lx - sn * ly, P[:, CY, None] + sn * lx + c * ly
+
+
+class ExactDistance:
+    """Exact signed Euclidean distances to the boundaries of a fixed list of squircles.
+
+    The one exact point-to-squircle distance of the project (:meth:`Squircle.distance` and the
+    simulator use it), vectorised over (point, squircle) pairs with the boundary samples
+    computed once. Samples are evenly spaced in arc length, at most ``spacing`` metres apart
+    and at least ``min_samples`` per squircle. Every discrete local minimum of the sampled
+    distance within half a spacing of the smallest one is a candidate (a point inside a
+    squircle can have several nearly equal local minima); each candidate brackets a local
+    minimum of the true distance between its two neighbouring samples, and ``stages`` rounds
+    of ``m`` samples shrink every bracket ``m / 2`` times. The result is the smallest refined
+    candidate, with an error below 1e-9 m (tested against a dense brute force). Negative
+    inside (``beta < 0``).
+
+    Parameters
+    ----------
+    squircles : sequence of Squircle
+    spacing : float
+        Largest arc length between boundary samples (metres).
+    stages, m : int
+        Refinement rounds and samples per round.
+    split : int, optional
+        Squircles ``[0, split)`` and ``[split, len)`` (e.g. obstacles and a large workspace)
+        get separate sample counts.
+    min_samples : int
+        Fewest boundary samples per squircle.
+    """
+
+    def __init__(self, squircles, spacing: float = 0.005, stages: int = 4, m: int = 128, split: int | None = None,
+                 min_samples: int = 256):
+        self.squircles = tuple(squircles)
+        self.P = pack(self.squircles) if self.squircles else np.zeros((0, 7))
+        self.stages = stages
+        self.m = m
+        # groups of squircles sharing one sample count: [0, split) and [split, len) (the workspace)
+        split = len(self.squircles) if split is None else split
+        self._groups = []
+        for lo, hi in ((0, split), (split, len(self.squircles))):
+            if hi <= lo:
+                continue
+            perim = max(_perimeter(sq) for sq in self.squircles[lo:hi])
+            n = int(min(8192, max(min_samples, math.ceil(perim / spacing))))
+            psi = np.stack([sq.boundary_psi(n) for sq in self.squircles[lo:hi]])
+            pts = np.stack([sq.point_at(p) for p, sq in zip(psi, self.squircles[lo:hi])])
+            self._groups.append((lo, hi, psi, pts, 0.5 * _max_arc(self.squircles[lo:hi], psi)))
+
+    def sampled(self, q: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Unsigned distances ``d`` of the points ``q (K, 2)`` to the nearest boundary samples of
+        the squircles ``j (K,)``, and ``h``, half the largest arc between consecutive samples.
+
+        The exact unsigned distance to the boundary lies in ``[d - h, d]``.
+        """
+        q = np.asarray(q, dtype=float).reshape(-1, 2)
+        j = np.asarray(j, dtype=np.intp).reshape(-1)
+        d = np.empty(len(q))
+        h = np.empty(len(q))
+        for lo, hi, _, pts_g, half_arc in self._groups:
+            sel = np.nonzero((j >= lo) & (j < hi))[0]
+            if sel.size:
+                g = j[sel] - lo
+                d[sel] = np.sqrt(((pts_g[g] - q[sel, None, :]) ** 2).sum(-1).min(axis=1))
+                h[sel] = half_arc[g]
+        return d, h
+
+    def signed(self, q: np.ndarray, j: np.ndarray) -> np.ndarray:
+        """Signed distances of the points ``q (K, 2)`` to the squircles ``j (K,)`` (indices)."""
+        q = np.asarray(q, dtype=float).reshape(-1, 2)
+        j = np.asarray(j, dtype=np.intp).reshape(-1)
+        if len(q) == 0:
+            return np.empty(0)
+        pair, los, his = [], [], []
+        for lo, hi, psi_g, pts_g, half_gap in self._groups:
+            sel = np.nonzero((j >= lo) & (j < hi))[0]
+            if sel.size == 0:
+                continue
+            g = j[sel] - lo
+            if hi - lo == 1:  # one squircle: broadcast its samples instead of gathering copies
+                px, py = pts_g[:, :, 0], pts_g[:, :, 1]
+            else:
+                px, py = pts_g[g, :, 0], pts_g[g, :, 1]
+            d2 = (px - q[sel, 0, None]) ** 2 + (py - q[sel, 1, None]) ** 2  # (k, n)
+            local = d2 <= np.roll(d2, 1, axis=1)
+            local &= d2 <= np.roll(d2, -1, axis=1)
+            local &= d2 <= (np.sqrt(d2.min(axis=1)) + half_gap[g])[:, None] ** 2
+            r, k = np.nonzero(local)
+            n = psi_g.shape[1]
+            psi = psi_g[g[r]]
+            pair.append(sel[r])
+            los.append(np.where(k > 0, psi[np.arange(len(k)), k - 1], psi[:, -1] - 2.0 * math.pi))
+            his.append(np.where(k < n - 1, psi[np.arange(len(k)), (k + 1) % n], psi[:, 0] + 2.0 * math.pi))
+        pair = np.concatenate(pair)
+        lo, hi = np.concatenate(los), np.concatenate(his)
+        P = self.P[j[pair]]
+        qx, qy = q[pair, 0, None], q[pair, 1, None]
+        grid = np.linspace(0.0, 1.0, self.m + 1)[None, :]
+        rows = np.arange(len(pair))
+        best = np.full(len(pair), np.inf)
+        for _ in range(self.stages):
+            psi = lo[:, None] + (hi - lo)[:, None] * grid
+            bx, by = _point_xy_rows(P, psi)
+            d2 = (bx - qx) ** 2 + (by - qy) ** 2
+            k = np.argmin(d2, axis=1)
+            best = np.minimum(best, d2[rows, k])
+            step = (hi - lo) / self.m
+            centre = psi[rows, k]
+            lo, hi = centre - step, centre + step
+        dist = np.full(len(q), np.inf)
+        np.minimum.at(dist, pair, np.sqrt(best))
+        inside = beta_rows(self.P[j], q[:, 0], q[:, 1]) < 0.0
+        return np.where(inside, -dist, dist)
+
+
+@functools.lru_cache(maxsize=256)
+def _exact_distance(sq: Squircle, min_samples: int) -> ExactDistance:
+    """The (immutable) distance table of one squircle, built once."""
+    return ExactDistance([sq], spacing=0.05, stages=10, m=16, min_samples=min_samples)
+
+
+def _max_arc(squircles, psi: np.ndarray, sub: int = 16) -> np.ndarray:
+    """Largest boundary arc length between consecutive samples ``psi (k, n)``, per squircle."""
+    out = np.empty(len(squircles))
+    frac = np.linspace(0.0, 1.0, sub + 1)
+    for i, sq in enumerate(squircles):
+        a = psi[i]
+        b = np.append(a[1:], a[0] + 2.0 * math.pi)
+        fine = sq.point_at(a[:, None] + (b - a)[:, None] * frac[None, :])
+        arc = np.linalg.norm(np.diff(fine, axis=1), axis=-1).sum(axis=1)
+        out[i] = arc.max() * (1.0 + 1e-6)
+    return out
+
+
+def _perimeter(sq: Squircle) -> float:
+    pts = sq.point_at(np.linspace(0.0, 2.0 * math.pi, 2049))
+    return float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
 
 
 def _normalised(p: np.ndarray, x, y):

@@ -115,6 +115,46 @@ def test_distance_matches_dense_boundary_sampling(sq):
     assert np.all(np.sign(d) == np.sign(brute))
 
 
+def _brute_distance(sq: Squircle, q: np.ndarray) -> np.ndarray:
+    """Unsigned distance by dense sampling (400 001 parameters), then a fine local re-sampling."""
+    psi = np.linspace(0.0, 2.0 * np.pi, 400_001)
+    pts = sq.point_at(psi)
+    out = np.empty(len(q))
+    for i, x in enumerate(q):
+        k = int(np.argmin(((pts - x) ** 2).sum(1)))
+        fine = np.linspace(psi[k] - 2e-5, psi[k] + 2e-5, 20_001)
+        out[i] = np.sqrt(((sq.point_at(fine) - x) ** 2).sum(1).min())
+    return out
+
+
+@pytest.mark.parametrize("sq", [*SHAPES, Squircle((0.57, 1.79), 2.98, 0.225, -2.01, 0.99),
+                                Squircle((0.0, 0.0), 4.0, 0.3, 0.4, 0.999)],
+                         ids=[*IDS, "long-thin-wall", "s0.999"])
+def test_distance_is_exact_to_1e_9(sq):
+    """The one exact distance (ExactDistance) against a dense brute force, to 1e-9 m; includes a
+    long thin wall where the former golden-section search was 2e-7 m off."""
+    rng = np.random.default_rng(11)
+    pts = np.concatenate([_random_points(sq, rng, 30), [[-2.59293752, -5.31727862]]])
+    d = sq.distance(pts)
+    assert np.max(np.abs(np.abs(d) - _brute_distance(sq, pts))) < 1e-9
+    assert np.all((d < 0) == (sq.beta(pts) < 0))
+
+
+def test_distance_shared_with_the_simulator():
+    """Squircle.distance and the simulator's ExactDistance are one implementation."""
+    from navigation.geometry import ExactDistance
+    from service.sim import _shapes
+
+    assert _shapes.ExactDistance is ExactDistance
+    sqs = SHAPES[:3]
+    ed = ExactDistance(sqs)
+    rng = np.random.default_rng(3)
+    q = rng.uniform(-3.0, 3.0, size=(60, 2))
+    j = rng.integers(0, len(sqs), size=60)
+    expected = np.array([float(sqs[k].distance(x)) for x, k in zip(q, j)])
+    assert np.max(np.abs(ed.signed(q, j) - expected)) < 1e-9
+
+
 def test_distance_of_boundary_points_is_zero():
     sq = SHAPES[1]
     assert np.max(np.abs(sq.distance(sq.boundary_points(50)))) < 1e-9

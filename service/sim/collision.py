@@ -36,9 +36,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from navigation.geometry import Squircle
+from navigation.geometry import ExactDistance, Squircle, beta_rows
 
-from ._shapes import ExactDistance, beta_rows
 from .kinematics import arc_positions
 
 __all__ = ["ClearanceMap", "Sweep", "WORKSPACE"]

@@ -37,10 +37,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from navigation.geometry import Squircle, pack, ray_length_packed
+from navigation.geometry import Squircle, beta_rows, pack, ray_length_packed
 from navigation.world import LidarSpec
 
-from ._shapes import beta_rows
 from .errors import SimulatorError
 
 __all__ = ["LidarConfig", "RayCaster", "FULL_CIRCLE_TOL"]
