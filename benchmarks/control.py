@@ -76,13 +76,9 @@ def _worlds(n_random: int):
         yield f"random12_seed{seed}", random_forest_world(seed, gap=0.3)
 
 
-def run(*, quick: bool = False, starts: int = 10, goals: int = 2, n_random: int = 5) -> dict:
-    if quick:
-        starts, goals, n_random = 2, 1, 0
-    rows = []
-    for name, world in _worlds(n_random):
-        if quick and name != "simple":
-            continue
+def _world_row(job) -> dict:
+    name, world, starts, goals = job
+    if True:
         rng = np.random.default_rng(0)
         r = world.robot.radius
         cfg = ControllerConfig.from_robot(world.robot)
@@ -107,7 +103,37 @@ def run(*, quick: bool = False, starts: int = 10, goals: int = 2, n_random: int 
             "step_median": statistics.median(times), "step_pass": statistics.median(times) <= STEP_TARGET,
         }
         log(f"[bench] {name}: {row['reached']}/{row['runs']} reached, {row['collisions']} collisions")
-        rows.append(row)
+        return row
+
+
+def _total(rows: list[dict]) -> dict:
+    runs = sum(r["runs"] for r in rows)
+    ok = sum(r["reached"] for r in rows)
+
+    def mean(key, weight):
+        pairs = [(r[key], r[weight]) for r in rows if r[key] is not None and r[weight]]
+        w = sum(n for _, n in pairs)
+        return sum(x * n for x, n in pairs) / w if w else None
+
+    return {"world": "all", "n_obstacles": None, "runs": runs, "reached": ok, "success_rate": ok / runs if runs else 0.0,
+            "collisions": sum(r["collisions"] for r in rows), "min_clearance": min(r["min_clearance"] for r in rows),
+            "mean_distance": mean("mean_distance", "reached"), "mean_time": mean("mean_time", "reached"),
+            "flips_per_m": mean("flips_per_m", "runs"), "curvature": mean("curvature", "runs"),
+            "step_median": statistics.median(r["step_median"] for r in rows),
+            "step_pass": all(r["step_pass"] for r in rows)}
+
+
+def run(*, quick: bool = False, starts: int = 10, goals: int = 2, n_random: int = 5, jobs: int = 1) -> dict:
+    if quick:
+        starts, goals, n_random = 2, 1, 0
+    work = [(name, world, starts, goals) for name, world in _worlds(n_random) if not quick or name == "simple"]
+    if jobs > 1:
+        from concurrent.futures import ProcessPoolExecutor
+        with ProcessPoolExecutor(max_workers=jobs) as pool:
+            rows = list(pool.map(_world_row, work))
+    else:
+        rows = [_world_row(job) for job in work]
+    rows.append(_total(rows))
     return {"benchmark": "control", "quick": quick, "settings": {"starts": starts, "goals": goals, "random": n_random},
             "tolerances": {"position": POS_TOL, "heading": HEADING_TOL, "max_time": MAX_TIME},
             "step_target": STEP_TARGET, "worlds": rows,
@@ -127,7 +153,7 @@ def render_markdown(result: dict) -> str:
              "| turn-sign flips / m | integrated abs curvature (rad) | controller step (ms) | <= 2 ms |",
              "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|:---:|"]
     for r in result["worlds"]:
-        lines.append(f"| {r['world']} | {r['n_obstacles']} | {r['reached']}/{r['runs']} | {r['collisions']} | "
+        lines.append(f"| {r['world']} | {_f(r['n_obstacles'], 'd')} | {r['reached']}/{r['runs']} | {r['collisions']} | "
                      f"{r['min_clearance']:.4f} | {_f(r['mean_distance'], '.2f')} | {_f(r['mean_time'], '.1f')} | "
                      f"{r['flips_per_m']:.2f} | {r['curvature']:.2f} | {r['step_median'] * 1e3:.2f} | "
                      f"{'PASS' if r['step_pass'] else 'FAIL'} |")
@@ -142,10 +168,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--starts", type=int, default=10, help="start poses per goal")
     parser.add_argument("--goals", type=int, default=2, help="goal poses per world")
     parser.add_argument("--random", type=int, default=5, help="random worlds (seeds 0..N-1)")
+    parser.add_argument("--jobs", type=int, default=1, help="worker processes (one world per task)")
     args = parser.parse_args(argv)
-    if args.starts < 1 or args.goals < 1 or args.random < 0:
-        parser.error("--starts and --goals must be >= 1 and --random >= 0")
-    result = run(quick=args.quick, starts=args.starts, goals=args.goals, n_random=args.random)
+    if args.starts < 1 or args.goals < 1 or args.random < 0 or args.jobs < 1:
+        parser.error("--starts, --goals and --jobs must be >= 1 and --random >= 0")
+    result = run(quick=args.quick, starts=args.starts, goals=args.goals, n_random=args.random, jobs=args.jobs)
     write_results(args.out, "control", result, render_markdown(result))
     return 0
 

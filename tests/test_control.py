@@ -127,3 +127,43 @@ def test_waypoint_switch_is_continuous_and_does_not_stop():
             break
     assert near_speeds and min(near_speeds) > 0.05, f"stopped near the waypoint: {min(near_speeds) if near_speeds else None}"
     assert current is f2 and math.hypot(sim.pose[0] - w2[0], sim.pose[1] - w2[1]) < POS_TOL
+
+
+@pytest.mark.parametrize("name", ["simple", "office"])
+def test_clearance_bound_is_a_tight_certified_lower_bound(name):
+    """``OrientedField.clearance`` never exceeds the exact distance to the grown obstacles and
+    workspace boundary, and is within 3 mm of it (half the 5 mm boundary sample spacing)."""
+    world = shared_world(name)
+    forest = world.forest(world.robot.radius)
+    bound = navigation.clearance.ClearanceBound(forest.workspace, forest.obstacles)
+    rng = np.random.default_rng(11)
+    ws = forest.workspace
+    pts = np.asarray(ws.center) + rng.uniform(-0.55, 0.55, size=(40, 2)) * (ws.width, ws.height)
+    near = [o.point_at(rng.uniform(0, 2 * np.pi)) + rng.normal(0, 0.02, 2) for o in forest.obstacles[:20]]
+    pts = np.vstack((pts, near))
+    exact = np.array([max(0.0, min(-float(ws.distance(q)), *(float(o.distance(q)) for o in forest.obstacles)))
+                      for q in pts])
+    lb = bound(pts)
+    assert np.all(lb <= exact + 1e-12), pts[np.argmax(lb - exact)]
+    assert np.all(exact - lb <= 3e-3), (pts[np.argmax(exact - lb)], float(np.max(exact - lb)))
+    capped = bound(pts, 0.05)
+    assert np.all((capped <= exact + 1e-12) | (exact >= 0.05))
+    assert np.all((capped >= 0.05) | np.isclose(capped, lb))
+
+
+def test_safety_limit_caps_speed_by_clearance():
+    """``v <= clearance / safety_horizon`` at every pose; next to a grown boundary the limit is
+    what slows the robot (unlimited, eq. 24 would drive 5 cm in one step from 2.8 cm away)."""
+    world = shared_world("office")
+    r = world.robot.radius
+    cfg = ControllerConfig.from_robot(world.robot)
+    field = OrientedField(navigation.NavigationFunction(world, goal=(6.4, 3.3), inflation=r), heading=0.0)
+    rng = np.random.default_rng(5)
+    for s in random_free_points(world, 200, rng, margin=r + 0.005):
+        cmd = track((s[0], s[1], rng.uniform(-np.pi, np.pi)), field, cfg)
+        assert 0.0 <= cmd.v <= float(field.clearance(s)) / cfg.safety_horizon + 1e-12
+    unlimited = ControllerConfig.from_robot(world.robot, safety_horizon=0.0)
+    pose = (3.5, 0.13, 1.0)
+    assert float(field.clearance(pose[:2])) < 0.03
+    assert track(pose, field, unlimited).v == cfg.v_max
+    assert track(pose, field, cfg).v <= float(field.clearance(pose[:2])) / cfg.safety_horizon < cfg.v_max

