@@ -266,12 +266,14 @@ def _pattern_min(fun, c0: np.ndarray, w0: np.ndarray, f0: np.ndarray, *, m: int,
 class _Body:
     """Boundary samples of one squircle, with its packed row and a k-d tree of the samples."""
 
-    __slots__ = ("sq", "row", "psi", "pts", "w0", "spacing", "tree", "lo", "hi", "radius", "n_dense", "_dense")
+    __slots__ = ("sq", "row", "psi", "pts", "w0", "spacing", "tree", "lo", "hi", "radius", "n_dense", "_dense",
+                 "_dense_tree")
 
     def __init__(self, sq: Squircle, n: int, n_dense: int = 1024):
         self.sq = sq
         self.n_dense = n_dense
         self._dense = None
+        self._dense_tree = None
         self.row = pack([sq])[0]
         self.psi = sq.boundary_psi(n)
         self.pts = sq.point_at(self.psi)
@@ -283,11 +285,54 @@ class _Body:
         self.hi = self.pts.max(axis=0)
         self.radius = sq.bounding_radius
 
-    def dense_tree(self) -> cKDTree:
-        """k-d tree of ``n_dense`` boundary samples (built on first use)."""
+    def dense_pts(self) -> np.ndarray:
+        """``n_dense`` boundary samples (computed on first use)."""
         if self._dense is None:
-            self._dense = cKDTree(self.sq.boundary_points(self.n_dense))
+            self._dense = self.sq.boundary_points(self.n_dense)
         return self._dense
+
+    def dense_tree(self) -> cKDTree:
+        """k-d tree of :meth:`dense_pts` (built on first use)."""
+        if self._dense_tree is None:
+            self._dense_tree = cKDTree(self.dense_pts())
+        return self._dense_tree
+
+
+class _Slabs:
+    """Nearest boundary samples of many bodies with one k-d tree query.
+
+    The samples of body ``b`` are lifted to the plane ``z = slot(b) * gap`` of 3-D space and a
+    query point for body ``b`` is lifted to the same plane; with ``gap`` far larger than any
+    in-plane distance the nearest lifted sample is the nearest sample of ``b`` itself, at the
+    same (planar) distance. Replaces one k-d tree query per body by one query in total.
+    """
+
+    def __init__(self, bodies: Sequence[_Body], ids, dense: bool):
+        ids = sorted(set(int(b) for b in ids))
+        self.bodies = bodies
+        self.slot = np.full(len(bodies), -1, dtype=np.intp)  # body index -> plane number
+        self.slot[ids] = np.arange(len(ids))
+        pts = [bodies[b].dense_pts() if dense else bodies[b].pts for b in ids]
+        allp = np.concatenate(pts) if pts else np.zeros((0, 2))
+        self.offset = np.cumsum([0] + [len(p) for p in pts])
+        lo, hi = (allp.min(axis=0), allp.max(axis=0)) if len(allp) else (np.zeros(2), np.zeros(2))
+        self.reach = 100.0 * (float(np.hypot(*(hi - lo))) + 1.0)  # queries must lie this close
+        self.gap = 4.0 * self.reach
+        z = np.repeat(np.arange(len(ids)) * self.gap, [len(p) for p in pts])
+        self.tree = cKDTree(np.column_stack((allp, z))) if len(allp) else None
+        self.centre = 0.5 * (lo + hi)
+
+    def query(self, q: np.ndarray, bid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Distances ``(K,)`` from ``q (K, 2)`` to the nearest samples of bodies ``bid (K,)`` and
+        the samples' indices within their body."""
+        sl = self.slot[bid]
+        if np.any(sl < 0):
+            raise ValueError("query for a body without samples in the slab k-d tree")
+        far = np.hypot(*(q - self.centre).T) > self.reach if len(q) else np.zeros(0, bool)
+        if np.any(far):
+            raise ValueError("query point too far from the samples for the slab k-d tree")
+        d, k = self.tree.query(np.column_stack((q, sl * self.gap)))
+        return d, k - self.offset[sl]
 
 
 def _signed_distance(bodies: Sequence[_Body], bid: np.ndarray, q: np.ndarray, tol: float = 1e-12) -> np.ndarray:
@@ -318,23 +363,42 @@ def _pair_distance(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, tol: f
     """
     K = len(I)
     c0, w0, f0 = np.empty((K, 2)), np.empty((K, 2)), np.empty(K)
-    for k, (i, j) in enumerate(zip(I, J)):
-        bi, bj = bodies[i], bodies[j]
+    if K:
         # far apart: every 8th sample of i finds the right region; the window widens to match
-        far = np.hypot(*(bi.row[:2] - bj.row[:2])) > bi.radius + bj.radius + 0.25
-        stride = 8 if far else 1
-        d, kk = bj.tree.query(bi.pts[::stride])
-        a = int(np.argmin(d))
-        c0[k] = bi.psi[a * stride], bj.psi[kk[a]]
-        w0[k] = stride * bi.w0, bj.w0
-        f0[k] = d[a] ** 2
+        ci = np.array([bodies[i].row[:2] for i in I])
+        cj = np.array([bodies[j].row[:2] for j in J])
+        rad = np.array([bodies[i].radius + bodies[j].radius for i, j in zip(I, J)])
+        stride = np.where(np.hypot(*(ci - cj).T) > rad + 0.25, 8, 1)
+        # nearest sample of j to every (strided) sample of i, all pairs in one k-d tree query
+        qs = [bodies[i].pts[::s] for i, s in zip(I, stride)]
+        lens = np.array([len(q) for q in qs])
+        d, kk = _Slabs(bodies, J, dense=False).query(np.concatenate(qs), np.repeat(J, lens))
+        width = int(lens.max())
+        pad = np.full((K, width), np.inf)
+        mask = np.arange(width)[None, :] < lens[:, None]
+        pad[mask] = d
+        a = np.argmin(pad, axis=1)  # first minimum, as before
+        flat = np.concatenate(([0], np.cumsum(lens)[:-1])) + a
+        for k, (i, j) in enumerate(zip(I, J)):
+            c0[k] = bodies[i].psi[a[k] * stride[k]], bodies[j].psi[kk[flat[k]]]
+            w0[k] = stride[k] * bodies[i].w0, bodies[j].w0
+        f0[:] = d[flat] ** 2
     PI = np.stack([bodies[i].row for i in I]) if K else np.empty((0, 7))
     PJ = np.stack([bodies[j].row for j in J]) if K else np.empty((0, 7))
 
-    def fun(rows, ps):
-        return ((_xy(PI[rows], ps[..., 0]) - _xy(PJ[rows], ps[..., 1])) ** 2).sum(-1)
+    m = 7
 
-    c, f = _pattern_min(fun, c0, w0, f0, m=7, shrink=0.4, tol=tol)
+    def fun(rows, ps):
+        # the poll is an axis-aligned m x m grid ('ij' order): only m distinct parameters per
+        # body, so evaluate the boundaries there and form the m^2 distances by broadcasting
+        g = ps.reshape(len(rows), m, m, 2)
+        a = _xy(PI[rows], g[:, :, 0, 0])  # (k, m, 2) at the m values of the first parameter
+        b = _xy(PJ[rows], g[:, 0, :, 1])
+        dx = a[:, :, None, 0] - b[:, None, :, 0]
+        dy = a[:, :, None, 1] - b[:, None, :, 1]
+        return (dx * dx + dy * dy).reshape(len(rows), m * m)
+
+    c, f = _pattern_min(fun, c0, w0, f0, m=m, shrink=0.4, tol=tol)
     pa = _xy(PI, c[:, 0]) if K else np.empty((0, 2))
     pb = _xy(PJ, c[:, 1]) if K else np.empty((0, 2))
     return np.sqrt(f), pa, pb
@@ -399,16 +463,14 @@ def _common_centers(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, outsi
     PI = np.stack([bodies[i].row for i in I])
     PJ = np.stack([bodies[j].row for j in J])
 
+    slabs = _Slabs(bodies, np.concatenate((I, J)), dense=True)
+
     def objective(rows, q):
         # approximate depths: distance to the nearest dense boundary sample, signed by beta
         k, n = q.shape[:2]
-        dist = np.empty((2, k, n))
-        ii, jj = I[rows], J[rows]
-        for b in np.unique(np.concatenate((ii, jj))):
-            ra, rb = np.nonzero(ii == b)[0], np.nonzero(jj == b)[0]
-            d = bodies[b].dense_tree().query(np.concatenate((q[ra], q[rb])).reshape(-1, 2))[0].reshape(-1, n)
-            dist[0, ra] = d[:len(ra)]
-            dist[1, rb] = d[len(ra):]
+        qq = q.reshape(-1, 2)
+        d, _ = slabs.query(np.concatenate((qq, qq)), np.concatenate((np.repeat(I[rows], n), np.repeat(J[rows], n))))
+        dist = d.reshape(2, k, n)
         da = np.where(_beta(PI[rows], q) < 0, dist[0], -dist[0])
         db = np.where(_beta(PJ[rows], q) < 0, dist[1], -dist[1]) * np.where(outside[rows], -1.0, 1.0)[:, None]
         return -np.minimum(da, db)
