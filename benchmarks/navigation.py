@@ -11,14 +11,16 @@ of each world's first region. Measured (medians over repeats of :func:`time.perf
 intervals, after one warm-up call):
 
 * ``forest_build``: :func:`navigation.build_forest` on the world's obstacles;
-* ``construction``: ``NavigationFunction(forest, goal)`` for an already built forest;
+* ``nf_construction``: ``NavigationFunction(forest, goal)`` for an already built forest;
+* ``construction``: the total, ``NavigationFunction(build_forest(workspace, obstacles), goal)``
+  (the issue's construction target counts the forest build);
 * ``one_point``: ``nf.evaluate(q, 2)`` (value, gradient, Hessian) for one point ``q (2,)``,
   median over 200 random free points;
 * ``batch_10k``: ``nf.evaluate(Q, 2)`` for 10 000 random free points;
 * ``grid_200``: ``nf.evaluate(G, 1)`` (values and gradients) on a 200 x 200 grid over the
   workspace's bounding box (free and non-free points).
 
-Targets (for 20 obstacles): construction <= 5 ms, one point <= 1 ms, 10k batch <= 0.2 s,
+Targets (for 20 obstacles): total construction <= 5 ms, one point <= 1 ms, 10k batch <= 0.2 s,
 200 x 200 grid <= 0.5 s. Results go to ``<out>/navigation.json`` and ``<out>/navigation.md``
 (a table with a PASS/FAIL column per target); the table is also printed to stdout, progress to
 stderr. ``--quick`` takes fewer repeats and points (a smoke test, not a measurement).
@@ -49,7 +51,7 @@ MAX_DEPTH = 4
 SHARED = ("office", "cluttered20")
 #: metric -> (target in seconds, label); the targets are specified for 20 obstacles
 TARGETS = {
-    "construction": (5e-3, "construction <= 5 ms"),
+    "construction": (5e-3, "total construction (forest build + navigation function) <= 5 ms"),
     "one_point": (1e-3, "one point <= 1 ms"),
     "batch_10k": (0.2, "10k batch <= 0.2 s"),
     "grid_200": (0.5, "200x200 grid <= 0.5 s"),
@@ -58,7 +60,7 @@ TARGET_OBSTACLES = 20
 #: rows whose obstacle count is at most this are held to the targets (office has 22)
 TARGET_APPLIES_UP_TO = 25
 
-FULL = {"forest_repeats": 5, "construction_repeats": 50, "points": 200, "batch_repeats": 7, "grid_repeats": 7}
+FULL = {"forest_repeats": 7, "construction_repeats": 50, "points": 200, "batch_repeats": 7, "grid_repeats": 7}
 QUICK = {"forest_repeats": 1, "construction_repeats": 3, "points": 10, "batch_repeats": 1, "grid_repeats": 1}
 
 
@@ -97,7 +99,9 @@ def bench_world(world, settings: dict, seed: int = 0) -> dict:
     forest_build = _median_time(lambda: build_forest(world.workspace, world.obstacles),
                                 settings["forest_repeats"])
     forest = world.forest(0.0)
-    construction = _median_time(lambda: NavigationFunction(forest, goal), settings["construction_repeats"])
+    nf_construction = _median_time(lambda: NavigationFunction(forest, goal), settings["construction_repeats"])
+    construction = _median_time(lambda: NavigationFunction(build_forest(world.workspace, world.obstacles), goal),
+                                settings["forest_repeats"])
     nf = NavigationFunction(forest, goal)
     pts = random_free_points(world, settings["points"], rng)
     nf.evaluate(pts[0], 2)  # warm-up
@@ -117,6 +121,7 @@ def bench_world(world, settings: dict, seed: int = 0) -> dict:
         "max_depth": forest.max_depth,
         "goal": [float(goal[0]), float(goal[1])],
         "forest_build": forest_build,
+        "nf_construction": nf_construction,
         "construction": construction,
         "one_point": statistics.median(singles),
         "batch_10k": batch_10k,
@@ -140,8 +145,8 @@ def run(*, quick: bool = False, sizes: Sequence[int] = SIZES, shared: Sequence[s
         row["target_applies"] = applies
         row["pass"] = {k: bool(row[k] <= limit) for k, (limit, _) in TARGETS.items()}
         rows.append(row)
-        log(f"[bench] {name}: forest {1e3 * row['forest_build']:.1f} ms, construction "
-             f"{1e3 * row['construction']:.2f} ms, one point {1e3 * row['one_point']:.3f} ms, "
+        log(f"[bench] {name}: forest {1e3 * row['forest_build']:.1f} ms, navigation function "
+             f"{1e3 * row['nf_construction']:.2f} ms, total construction {1e3 * row['construction']:.1f} ms, one point {1e3 * row['one_point']:.3f} ms, "
              f"10k batch {row['batch_10k']:.3f} s, grid {row['grid_200']:.3f} s")
     return {
         "benchmark": "navigation",
@@ -168,14 +173,16 @@ def render_markdown(result: dict) -> str:
         "`time.perf_counter` intervals after a warm-up call."
         + (" **Quick mode: a smoke test, not a measurement.**" if result["quick"] else ""),
         "",
-        "| world | obstacles | trees | depth | forest build (ms) | construction (ms) | <= 5 ms "
+        "| world | obstacles | trees | depth | forest build (ms) | NF construction (ms) "
+        "| total construction (ms) | <= 5 ms "
         "| one point (ms) | <= 1 ms | 10k batch (s) | <= 0.2 s | 200x200 grid (s) | <= 0.5 s |",
-        "|---|---:|---:|---:|---:|---:|:---:|---:|:---:|---:|:---:|---:|:---:|",
+        "|---|---:|---:|---:|---:|---:|---:|:---:|---:|:---:|---:|:---:|---:|:---:|",
     ]
     for r in result["worlds"]:
         lines.append(
             f"| {r['world']} | {r['n_obstacles']} | {r['n_trees']} | {r['max_depth']} "
-            f"| {1e3 * r['forest_build']:.1f} | {1e3 * r['construction']:.2f} | {verdict(r, 'construction')} "
+            f"| {1e3 * r['forest_build']:.1f} | {1e3 * r['nf_construction']:.2f} "
+            f"| {1e3 * r['construction']:.1f} | {verdict(r, 'construction')} "
             f"| {1e3 * r['one_point']:.3f} | {verdict(r, 'one_point')} "
             f"| {r['batch_10k']:.3f} | {verdict(r, 'batch_10k')} "
             f"| {r['grid_200']:.3f} | {verdict(r, 'grid_200')} |")
@@ -183,6 +190,9 @@ def render_markdown(result: dict) -> str:
         "",
         f"Targets are specified for {TARGET_OBSTACLES} obstacles and apply to every row with at most "
         f"{TARGET_APPLIES_UP_TO} obstacles; verdicts in parentheses (larger worlds) are informative. "
+        "Forest build: `build_forest(workspace, obstacles)`; NF construction: `NavigationFunction(forest, goal)` "
+        "on a built forest; total construction (the <= 5 ms target): both, "
+        "`NavigationFunction(build_forest(workspace, obstacles), goal)`, measured as one call. "
         "One point: `nf.evaluate(q, 2)` for `q` of shape `(2,)` (median over random free points); "
         "10k batch: `nf.evaluate(Q, 2)`, 10 000 random free points; grid: `nf.evaluate(G, 1)` on "
         "200 x 200 points over the workspace's bounding box (non-free points included).",
