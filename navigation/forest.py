@@ -191,9 +191,10 @@ class Forest:
 
 
 # ---------------------------------------------------------------------- vectorised primitives
-def _col(P: np.ndarray, k: int, ndim: int) -> np.ndarray:
-    """Column ``k`` of packed rows ``P (K, 7)`` shaped to broadcast against ``(K, ...)``."""
-    return P[:, k].reshape((-1,) + (1,) * (ndim - 1))
+def _cols(P: np.ndarray, ndim: int) -> np.ndarray:
+    """Packed rows ``P (K, 7)`` as ``(7, K, 1, ...)``: ``_cols(P, n)[k]`` is column ``k``
+    shaped to broadcast against ``(K, ...)`` arrays of ``ndim`` dimensions."""
+    return P.T.reshape((7, -1) + (1,) * (ndim - 1))
 
 
 def _xy(P: np.ndarray, psi: np.ndarray) -> np.ndarray:
@@ -201,26 +202,27 @@ def _xy(P: np.ndarray, psi: np.ndarray) -> np.ndarray:
 
     Same parametrisation as :meth:`Squircle.point_at`.
     """
+    C = _cols(P, psi.ndim)
     ux, uy = np.cos(psi), np.sin(psi)
     m = ux * uy
-    s = _col(P, S, psi.ndim)
+    s = C[S]
     rho = np.sqrt(2.0 / (1.0 + np.sqrt(np.maximum(1.0 - 4.0 * s * s * m * m, 0.0))))
-    lx = rho * ux * _col(P, HW, psi.ndim)
-    ly = rho * uy * _col(P, HH, psi.ndim)
-    c, sn = _col(P, COS, psi.ndim), _col(P, SIN, psi.ndim)
-    return np.stack((_col(P, CX, psi.ndim) + c * lx - sn * ly, _col(P, CY, psi.ndim) + sn * lx + c * ly), axis=-1)
+    lx = rho * ux * C[HW]
+    ly = rho * uy * C[HH]
+    c, sn = C[COS], C[SIN]
+    return np.stack((C[CX] + c * lx - sn * ly, C[CY] + sn * lx + c * ly), axis=-1)
 
 
 def _beta(P: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Obstacle function of packed squircles ``P (K, 7)`` at points ``q (K, ..., 2)``."""
-    nd = q.ndim - 1
-    dx = q[..., 0] - _col(P, CX, nd)
-    dy = q[..., 1] - _col(P, CY, nd)
-    c, sn = _col(P, COS, nd), _col(P, SIN, nd)
-    x = (dx * c + dy * sn) / _col(P, HW, nd)
-    y = (dy * c - dx * sn) / _col(P, HH, nd)
+    C = _cols(P, q.ndim - 1)
+    dx = q[..., 0] - C[CX]
+    dy = q[..., 1] - C[CY]
+    c, sn = C[COS], C[SIN]
+    x = (dx * c + dy * sn) / C[HW]
+    y = (dy * c - dx * sn) / C[HH]
     x2, y2 = x * x, y * y
-    s = _col(P, S, nd)
+    s = C[S]
     return 0.5 * (x2 + y2 + np.sqrt(x2 * x2 + y2 * y2 + (2.0 - 4.0 * s * s) * x2 * y2)) - 1.0
 
 
@@ -231,7 +233,8 @@ def _grid(m: int, dim: int) -> np.ndarray:
 
 
 def _pattern_min(fun, c0: np.ndarray, w0: np.ndarray, f0: np.ndarray, *, m: int, shrink: float,
-                 tol: float, max_rounds: int = 200, rotation: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+                 tol: float, max_rounds: int = 200, rotation: float = 0.0,
+                 bounded: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Vectorised grid pattern search, one independent problem per row.
 
     Each round evaluates ``fun(rows, points)`` (``points (k, m^D, D)``, returns ``(k, m^D)``)
@@ -239,6 +242,10 @@ def _pattern_min(fun, c0: np.ndarray, w0: np.ndarray, f0: np.ndarray, *, m: int,
     point, or shrinks its grid by ``shrink`` when none is better (the classical rule, which
     converges to a local minimum of a smooth function). Stops when every half-width is below
     ``tol`` (absolute). Returns ``(points (K, D), values (K,))``.
+
+    With ``bounded``, ``fun(rows, points, best)`` also gets the rows' current values and may
+    return, for a point it can show is not better, any value ``>= best`` instead of the exact
+    one: the moves and shrinks, hence the result, are the same.
     """
     c, w, best = c0.astype(float).copy(), w0.astype(float).copy(), f0.astype(float).copy()
     offs = _grid(m, c.shape[1])
@@ -251,7 +258,7 @@ def _pattern_min(fun, c0: np.ndarray, w0: np.ndarray, f0: np.ndarray, *, m: int,
         if rows.size == 0:
             break
         pts = c[rows, None, :] + w[rows, None, :] * offs[None, :, :]
-        v = fun(rows, pts)
+        v = fun(rows, pts, best[rows]) if bounded else fun(rows, pts)
         k = np.argmin(v, axis=1)
         vb = v[np.arange(len(rows)), k]
         better = vb < best[rows]
@@ -464,16 +471,49 @@ def _common_centers(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, outsi
     PJ = np.stack([bodies[j].row for j in J])
 
     slabs = _Slabs(bodies, np.concatenate((I, J)), dense=True)
+    # half the largest gap between dense samples: a sampled depth exceeds the exact one by less
+    half_gap = {b: 0.5 * float(np.max(np.linalg.norm(np.diff(bodies[b].dense_pts(), axis=0, append=bodies[b].dense_pts()[:1]),
+                                                    axis=1))) for b in np.unique(np.concatenate((I, J)))}
+    gap_i = np.array([half_gap[i] for i in I])
+    gap_j = np.where(outside, np.inf, np.array([half_gap[j] for j in J]))
 
-    def objective(rows, q):
+    def rect_depth(P, q):
+        # min(hw - |x|, hh - |y|) in the squircle's frame: >= the depth in its bounding
+        # rectangle, which contains the squircle, hence >= the depth in the squircle
+        C = _cols(P, 2)
+        dx = q[..., 0] - C[CX]
+        dy = q[..., 1] - C[CY]
+        c, sn = C[COS], C[SIN]
+        return np.minimum(C[HW] - np.abs(dx * c + dy * sn), C[HH] - np.abs(dy * c - dx * sn))
+
+    def objective(rows, q, best=None):
         # approximate depths: distance to the nearest dense boundary sample, signed by beta
         k, n = q.shape[:2]
-        qq = q.reshape(-1, 2)
-        d, _ = slabs.query(np.concatenate((qq, qq)), np.concatenate((np.repeat(I[rows], n), np.repeat(J[rows], n))))
-        dist = d.reshape(2, k, n)
-        da = np.where(_beta(PI[rows], q) < 0, dist[0], -dist[0])
-        db = np.where(_beta(PJ[rows], q) < 0, dist[1], -dist[1]) * np.where(outside[rows], -1.0, 1.0)[:, None]
-        return -np.minimum(da, db)
+        if best is None:  # the coarse grid: every value
+            qq = q.reshape(-1, 2)
+            d, _ = slabs.query(np.concatenate((qq, qq)),
+                               np.concatenate((np.repeat(I[rows], n), np.repeat(J[rows], n))))
+            dist = d.reshape(2, k, n)
+            da = np.where(_beta(PI[rows], q) < 0, dist[0], -dist[0])
+            db = np.where(_beta(PJ[rows], q) < 0, dist[1], -dist[1]) * np.where(outside[rows], -1.0, 1.0)[:, None]
+            return -np.minimum(da, db)
+        # pattern rounds: a point whose depth bound in I or J is <= the best depth -best cannot be
+        # better; it gets the bound (>= best), and the k-d tree queries are skipped for it
+        out = -np.minimum(rect_depth(PI[rows], q) + gap_i[rows, None],
+                          np.where(outside[rows, None], np.inf, rect_depth(PJ[rows], q) + gap_j[rows, None]))
+        r, p = np.nonzero(out < best[:, None])
+        if r.size:
+            qs = q[r, p]
+            d, _ = slabs.query(qs, I[rows[r]])
+            da = np.where(_beta(PI[rows[r]], qs[:, None])[:, 0] < 0, d, -d)
+            out[r, p] = -da  # >= best where da <= -best: J is not needed there
+            need = -da < best[r]
+            r2, p2, q2 = r[need], p[need], qs[need]
+            if r2.size:
+                d, _ = slabs.query(q2, J[rows[r2]])
+                db = np.where(_beta(PJ[rows[r2]], q2[:, None])[:, 0] < 0, d, -d) * np.where(outside[rows[r2]], -1.0, 1.0)
+                out[r2, p2] = -np.minimum(da[need], db)
+        return out
 
     g = _CENTER_GRID
     t = (np.arange(g) + 0.5) / g
@@ -484,9 +524,10 @@ def _common_centers(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, outsi
     k = np.argmin(v, axis=1)
     start, f0 = pts[rows, k], v[rows, k]
     w = (hi - lo) / g
-    c, f = _pattern_min(objective, start, w, f0, m=_CENTER_M, shrink=0.5, tol=tol, max_rounds=80)
+    c, f = _pattern_min(objective, start, w, f0, m=_CENTER_M, shrink=0.5, tol=tol, max_rounds=80, bounded=True)
     for rot in _CENTER_ROTATIONS:  # the max-min has ridges; re-poll along rotated directions
-        c, f = _pattern_min(objective, c, 0.1 * w, f, m=_CENTER_M, shrink=0.5, tol=tol, max_rounds=60, rotation=rot)
+        c, f = _pattern_min(objective, c, 0.1 * w, f, m=_CENTER_M, shrink=0.5, tol=tol, max_rounds=60, rotation=rot,
+                            bounded=True)
     depth = np.minimum(-_signed_distance(bodies, I, c), sgn * _signed_distance(bodies, J, c))
     # Thin intersections: sample distances are too coarse below a few sample spacings; refine
     # those (few) with exact distances.

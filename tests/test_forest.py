@@ -417,3 +417,67 @@ def test_fifty_obstacles():
     assert generated < 20.0
     check_invariants(f, max_depth=5)
     check_geometry(f, samples=128)
+
+
+# ---------------------------------------------------------------------- fast paths = reference
+class TestFastPathsMatchReferences:
+    """The build's shortcuts (one k-d tree for all bodies, bounded polls, separable polls) return
+    what the straightforward computations return."""
+
+    @pytest.fixture(scope="class")
+    def bodies(self):
+        from navigation.forest import _SAMPLES, _WS_SAMPLES, _Body
+
+        w = load_world("office")
+        return [_Body(o, _SAMPLES) for o in w.obstacles] + [_Body(w.workspace, _WS_SAMPLES, n_dense=4096)]
+
+    @pytest.mark.parametrize("dense", [False, True])
+    def test_slab_query_equals_per_body_queries(self, bodies, dense):
+        from navigation.forest import _Slabs
+
+        rng = np.random.default_rng(0)
+        bid = rng.integers(0, len(bodies), size=500)
+        q = np.array([bodies[b].row[:2] for b in bid]) + rng.normal(scale=0.5, size=(500, 2))
+        d, k = _Slabs(bodies, range(len(bodies)), dense=dense).query(q, bid)
+        for b in np.unique(bid):
+            sel = bid == b
+            tree = bodies[b].dense_tree() if dense else bodies[b].tree
+            d_ref, _ = tree.query(q[sel])
+            pts = bodies[b].dense_pts() if dense else bodies[b].pts
+            assert np.array_equal(d[sel], d_ref)
+            assert np.allclose(np.linalg.norm(pts[k[sel]] - q[sel], axis=1), d_ref, rtol=0, atol=1e-15)
+
+    def test_pair_distance_equals_unseparated_poll(self, bodies, monkeypatch):
+        """The separable 7 x 7 poll gives the same distances as evaluating all 49 grid points."""
+        import navigation.forest as F
+
+        n = len(bodies) - 1
+        I, J = np.triu_indices(n, 1)
+        I, J = np.concatenate((I, np.arange(n))), np.concatenate((J, np.full(n, n)))
+        fast, _, _ = F._pair_distance(bodies, I, J)
+        PI = np.stack([bodies[i].row for i in I])
+        PJ = np.stack([bodies[j].row for j in J])
+        plain = F._pattern_min
+
+        def reference(fun, c0, w0, f0, **kw):  # ignore the separable fun: all 49 points
+            def full(rows, ps):
+                return ((F._xy(PI[rows], ps[..., 0]) - F._xy(PJ[rows], ps[..., 1])) ** 2).sum(-1)
+            return plain(full, c0, w0, f0, **kw)
+
+        monkeypatch.setattr(F, "_pattern_min", reference)
+        slow, _, _ = F._pair_distance(bodies, I, J)
+        assert np.array_equal(fast, slow)
+
+    def test_bounded_poll_gives_the_unbounded_result(self, monkeypatch):
+        """Skipping k-d tree queries at points that provably cannot improve changes nothing."""
+        import navigation.forest as F
+
+        w = load_world("cluttered20")
+        fast = build_forest(w.workspace, w.obstacles)
+        plain = F._pattern_min
+        monkeypatch.setattr(F, "_pattern_min",
+                            lambda fun, *a, bounded=False, **kw: plain(fun, *a, bounded=False, **kw))
+        slow = build_forest(w.workspace, w.obstacles)
+        assert np.array_equal(fast.center, slow.center)
+        assert np.array_equal(fast.center_depth, slow.center_depth)
+        assert np.array_equal(fast.distances, slow.distances)
