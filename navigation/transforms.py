@@ -104,9 +104,15 @@ def _pairs(x: Jet, y: Jet, rows: np.ndarray, margin: np.ndarray):
 
 
 def _scatter(x: Jet, y: Jet, n: np.ndarray, dx: Jet, dy: Jet) -> tuple[Jet, Jet]:
+    """``(x, y)`` plus the displacements ``(dx, dy)`` of the (point, obstacle) pairs at points ``n``
+    (sorted, as :func:`numpy.nonzero` returns them; a point may repeat)."""
     ax, ay = x.a.copy(), y.a.copy()
-    np.add.at(ax, n, dx.a)
-    np.add.at(ay, n, dy.a)
+    if len(n) < 2 or np.all(n[1:] != n[:-1]):  # no repeated point: plain fancy-index add
+        ax[n] += dx.a
+        ay[n] += dy.a
+    else:
+        np.add.at(ax, n, dx.a)
+        np.add.at(ay, n, dy.a)
     return Jet(ax), Jet(ay)
 
 
