@@ -533,23 +533,28 @@ def ray_length_packed(p: np.ndarray, o: np.ndarray, d: np.ndarray, entry: np.nda
     r = _rectangle_crossing(x0, y0, ax, ay, entry)
     hi = np.where(entry, r + 2.0 * np.hypot(p[:, HW], p[:, HH]), r)
     k = 2.0 - 4.0 * p[:, S] ** 2
-    sgn = np.where(entry, -1.0, 1.0)
-    for _ in range(100):
-        x = x0 + r * ax
-        y = y0 + r * ay
-        x2, y2 = x * x, y * y
-        root = np.sqrt(np.maximum(x2 * x2 + y2 * y2 + k * x2 * y2, 1e-300))
-        g2 = 0.5 * (x2 + y2 + root)  # beta + 1
-        half = 0.5 / root
-        fp = x * ax * (1.0 + (2.0 * x2 + k * y2) * half) + y * ay * (1.0 + (2.0 * y2 + k * x2) * half)
-        good = (sgn * fp > 0) & (g2 >= 1.0)
-        g = np.sqrt(g2)
-        # Newton on g: r - (g - 1) / g' with g - 1 = beta / (g + 1) and g' = beta' / (2 g)
-        step = (g2 - 1.0) * (2.0 * g) / ((g + 1.0) * np.where(good, fp, 1.0))
-        r_new = np.clip(np.where(good, r - step, r), 0.0, hi)
-        if np.all(np.abs(r_new - r) <= 4e-16 * (1.0 + r)):
-            return r_new
-        r = r_new
+    sax = np.where(entry, -ax, ax)  # sign of the wanted slope folded into the direction
+    say = np.where(entry, -ay, ay)
+    zero = np.zeros_like(r)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for _ in range(100):
+            x = x0 + r * ax
+            y = y0 + r * ay
+            x2, y2 = x * x, y * y
+            kx2, ky2 = k * x2, k * y2
+            root = np.sqrt(np.maximum(x2 * (x2 + ky2) + y2 * y2, 1e-300))
+            g2 = 0.5 * (x2 + y2 + root)  # beta + 1
+            half = 0.5 / root
+            # signed slope: beta' along the ray (times -1 for entry rows), > 0 where Newton applies
+            fp = x * sax * ((x2 + x2 + ky2) * half + 1.0) + y * say * ((y2 + y2 + kx2) * half + 1.0)
+            g = np.sqrt(g2)
+            # Newton on g: r - (g - 1) / g' with g - 1 = beta / (g + 1) and g' = beta' / (2 g)
+            step = (g2 - 1.0) * (g + g) / ((g + 1.0) * fp)
+            good = (fp > 0.0) & (g2 >= 1.0)
+            r_new = np.minimum(np.maximum(np.where(good, np.where(entry, r + step, r - step), r), zero), hi)
+            if (np.abs(r_new - r) <= 4e-16 * (1.0 + r)).all():
+                return r_new
+            r = r_new
     return r
 
 
