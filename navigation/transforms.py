@@ -51,8 +51,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._arrays import as_points
-from ._jet import Jet, smoothstep_coeffs
-from .geometry import ray_length_center_jet, ray_length_jet
+from ._jet import _EDGE, Jet, smoothstep_coeffs
+from .geometry import _root_jet, ray_length_center_jet, ray_length_packed
 
 __all__ = ["PurgeStage", "StarToSphere", "SphereToPoint", "Chain", "jets_to_arrays"]
 
@@ -166,16 +166,36 @@ class PurgeStage(_Stage):
         if len(n) == 0:
             return x, y
         c = self.centre[k]
-        r, ux, uy = _polar(x[n], y[n], c)
+        # plain values first: one solve for the leaf's and the parent's ray lengths
+        dx, dy = x.v[n] - c[:, 0], y.v[n] - c[:, 1]
+        r0 = np.hypot(dx, dy)
+        ir = 1.0 / r0
+        ux0, uy0 = dx * ir, dy * ir  # the values _polar gives
         m = len(n)
-        # one solve for the leaf's and the parent's ray lengths
-        both = ray_length_jet(np.concatenate((self.leaf[k], self.parent[k])), np.concatenate((c, c)),
-                              Jet(np.concatenate((ux.a, ux.a))), Jet(np.concatenate((uy.a, uy.a))),
-                              entry=np.concatenate((np.zeros(m, dtype=bool), self.parent_is_workspace[k])))
+        rows = np.concatenate((self.leaf[k], self.parent[k]))
+        origin = np.concatenate((c, c))
+        both = ray_length_packed(rows, origin, np.stack((np.concatenate((ux0, ux0)), np.concatenate((uy0, uy0))), axis=1),
+                                 np.concatenate((np.zeros(m, dtype=bool), self.parent_is_workspace[k])))
+        rl0, rp0 = both[:m], both[m:]
+        # pairs whose switch is exactly 0 (the leaf does not protrude along the ray, or the point
+        # is beyond the shell: eta is exactly 0 resp. 1 there, with zero derivatives) move nothing;
+        # the same expressions as below decide it, so dropping them changes no bit of the result
+        with np.errstate(divide="ignore", invalid="ignore"):
+            live = ((rl0 - rp0) * (1.0 / (r0 - rp0)) > _EDGE) & ((r0 - rl0) * (1.0 / self.width[k]) < 1.0 - _EDGE)
+        if not live.all():
+            if not live.any():
+                return x, y
+            n, k, c, m = n[live], k[live], c[live], int(np.count_nonzero(live))
+            keep = np.concatenate((live, live))
+            rows, origin, both = rows[keep], origin[keep], both[keep]
+        r, ux, uy = _polar(x[n], y[n], c)
+        both = _root_jet(rows, origin, both, Jet(np.concatenate((ux.a, ux.a))), Jet(np.concatenate((uy.a, uy.a))))
         r_leaf, r_par = both[:m], both[m:]
         t = r - r_par
         e = r_leaf - r_par
-        sigma = _eta(e / t) * (1.0 - _eta((r - r_leaf) * (1.0 / self.width[k])))
+        # both switches in one smoothstep evaluation
+        z = _eta(Jet(np.concatenate(((e / t).a, ((r - r_leaf) * (1.0 / self.width[k])).a))))
+        sigma = z[:m] * (1.0 - z[m:])
         shift = e * sigma
         return _scatter(x, y, n, -(shift * ux), -(shift * uy))
 

@@ -274,3 +274,52 @@ def test_stage_derivatives_random_world(seed):
 @pytest.mark.parametrize("seed", SLOW_RANDOM_SEEDS)
 def test_stage_derivatives_random_world_many(seed):
     check_stages(_random(seed), seed=seed)
+
+
+# ---------------------------------------------------------------------- fast paths = reference
+def _reference_purge(stage, x, y):
+    """The purge map of eq. (13-19) written out plainly: every candidate pair goes through the
+    jet solve (``ray_length_jet``) and both switches, however small."""
+    from navigation._jet import Jet
+    from navigation.geometry import ray_length_jet
+    from navigation.transforms import _eta, _pairs, _polar
+
+    n, k = _pairs(x, y, stage.leaf, stage.width * 1.0001)
+    if len(n) == 0:
+        return x, y
+    c = stage.centre[k]
+    r, ux, uy = _polar(x[n], y[n], c)
+    m = len(n)
+    both = ray_length_jet(np.concatenate((stage.leaf[k], stage.parent[k])), np.concatenate((c, c)),
+                          Jet(np.concatenate((ux.a, ux.a))), Jet(np.concatenate((uy.a, uy.a))),
+                          entry=np.concatenate((np.zeros(m, dtype=bool), stage.parent_is_workspace[k])))
+    r_leaf, r_par = both[:m], both[m:]
+    e = r_leaf - r_par
+    sigma = _eta(e / (r - r_par)) * (1.0 - _eta((r - r_leaf) * (1.0 / stage.width[k])))
+    shift = e * sigma
+    ax, ay = x.a.copy(), y.a.copy()
+    np.add.at(ax, n, (-(shift * ux)).a)
+    np.add.at(ay, n, (-(shift * uy)).a)
+    return Jet(ax), Jet(ay)
+
+
+@pytest.mark.parametrize("name", ["office", "cluttered20"])
+def test_purge_shortcuts_match_the_plain_formula(name):
+    """Purge stages skip pairs whose switch is exactly zero and solve once in plain floats; the
+    result equals the plain formula (value, gradient, Hessian), point by point and in a batch."""
+    from navigation._jet import Jet
+    from navigation.transforms import PurgeStage
+
+    world = _shared(name)
+    nf = NavigationFunction(world, _goals(world, 1)[0])
+    pts = random_free_points(world, 400, np.random.default_rng(4))
+    for batch in (pts, *pts[:60, None, :]):
+        x, y = Jet.variables(batch, 2)
+        for st in nf.chain.stages:
+            if not isinstance(st, PurgeStage):
+                break
+            fx, fy = st.apply(x, y)
+            rx, ry = _reference_purge(st, x, y)
+            np.testing.assert_allclose(fx.a, rx.a, rtol=1e-12, atol=1e-12)
+            np.testing.assert_allclose(fy.a, ry.a, rtol=1e-12, atol=1e-12)
+            x, y = fx, fy
