@@ -391,10 +391,10 @@ class NavigationFunction:
             # one branch only (the common case for few points): no masked copies
             i = slice(None) if n_near == len(near) else near
             xs, ys = x[i], y[i]
-            d_jet = Jet.compose2(dg[i], 2 * gx[i], 2 * gy[i], np.full(n_near, 2.0), np.zeros(n_near),
-                                 np.full(n_near, 2.0), xs, ys)
-            lh_jet = Jet.compose2(lh[i], lhx[i], lhy[i], lhxx[i], lhxy[i], lhyy[i], xs, ys)
-            g = d_jet * lh_jet.exp()
+            two, zero = np.full(n_near, 2.0), np.zeros(n_near)
+            both = Jet.compose2(np.array((dg[i], lh[i])), np.array((2 * gx[i], lhx[i])), np.array((2 * gy[i], lhy[i])),
+                                np.array((two, lhxx[i])), np.array((zero, lhxy[i])), np.array((two, lhyy[i])), xs, ys)
+            g = both[0] * both[1].exp()  # |x - P_G|^2 h
             q = 1.0 / (1.0 + g.v)
             out[i] = g.apply(g.v * q, q * q, -2.0 * q * q * q).a
         if n_near < len(near):
