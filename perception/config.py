@@ -38,11 +38,13 @@ class PerceptionConfig:
     incidence :
         ``lam`` of the breakpoint rule (15 degrees).
     link :
-        Points closer than this belong to one cluster: ``max(2 R da, 2 voxel) + 3 sigma``.
+        Points closer than this belong to one cluster: ``max(4 R da, 3 voxel) + 3 sigma`` (twice the
+        spacing of neighbouring returns at full range on a surface facing the sensor).
     split_tol :
         RMS radial error above which a cluster is decomposed: ``0.012 + 2 sigma``.
     refit_tol :
-        A new point farther than this outside its estimate triggers a refit: ``0.02 + 2 sigma``.
+        A new point farther than this outside its estimate triggers a refit: ``0.04 + 2 sigma``
+        (smaller than a robot radius, so such points are still inside the inflated estimate).
     free_tol :
         A newly free cell deeper than this inside an estimate triggers a refit: ``0.03 + 2 sigma``.
     inside_tol :
@@ -130,11 +132,11 @@ class PerceptionConfig:
         da = max(da, 1e-4)
         voxel = overrides.get("voxel", 0.02)
         free_cell = overrides.get("free_cell", 0.04)
-        link = max(2 * R * da, 2 * voxel) + 3 * sig
+        link = max(4 * R * da, 3 * voxel) + 3 * sig
         ws_band = 0.01 + 3 * sig
         base = dict(range_max=R, angle_increment=da, noise_std=sig, voxel=voxel, free_cell=free_cell,
                     free_margin=free_cell / math.sqrt(2) + 3 * sig + 0.01, incidence=math.radians(15.0),
-                    link=link, split_tol=0.012 + 2 * sig, refit_tol=0.02 + 2 * sig, free_tol=0.03 + 2 * sig,
+                    link=link, split_tol=0.012 + 2 * sig, refit_tol=0.04 + 2 * sig, free_tol=0.03 + 2 * sig,
                     inside_tol=0.003 + 2 * sig, max_extent=2 * R + 1.0, ws_band=ws_band,
                     ws_touch=link + ws_band)
         unknown = set(overrides) - {f.name for f in fields(cls)}

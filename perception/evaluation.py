@@ -34,7 +34,7 @@ def _clear(sim, q: np.ndarray) -> np.ndarray:
 
 
 def tour(sim, n_goals: int, rng: np.random.Generator, *, step: float = 0.05, margin: float = 0.05,
-         tries: int = 60) -> np.ndarray:
+         tries: int = 24) -> np.ndarray:
     """Poses ``(K, 3)`` along a collision-free path through ``n_goals`` random free points.
 
     ``sim`` is a :class:`service.sim.Simulator` (its ground truth decides clearance); the path
@@ -46,6 +46,9 @@ def tour(sim, n_goals: int, rng: np.random.Generator, *, step: float = 0.05, mar
     cur = np.array(sim.pose[:2])
     poses = [tuple(sim.pose)]
     for _ in range(n_goals):
+        # among reachable candidates, go to the one farthest from the path so far (coverage)
+        seen = np.array([p[:2] for p in poses[:: max(len(poses) // 200, 1)]])
+        best = None
         for _ in range(tries):
             g = rng.uniform(lo, hi)
             L = float(np.linalg.norm(g - cur))
@@ -53,10 +56,14 @@ def tour(sim, n_goals: int, rng: np.random.Generator, *, step: float = 0.05, mar
                 continue
             n = max(int(L / 0.02), 2)
             seg = cur + np.linspace(0.0, 1.0, n)[:, None] * (g - cur)
-            if np.all(_clear(sim, seg) >= margin):
-                break
-        else:
+            if not np.all(_clear(sim, seg) >= margin):
+                continue
+            far = float(np.min(np.linalg.norm(seen - g, axis=1)))
+            if best is None or far > best[0]:
+                best = (far, g, L)
+        if best is None:
             continue
+        _, g, L = best
         th = math.atan2(g[1] - cur[1], g[0] - cur[0])
         k = max(int(math.ceil(L / step)), 1)
         for t in np.linspace(0.0, 1.0, k + 1)[1:]:

@@ -53,7 +53,7 @@ from .errors import ScanError
 __all__ = ["Fit", "gauge", "radial_error", "fit_squircle", "fit_cluster", "inflate", "rect_error"]
 
 _S_MAX = 0.99
-_MAX_POINTS = 240  # points used by one least-squares fit (evenly subsampled)
+_MAX_POINTS = 160  # points used by one least-squares fit (evenly subsampled)
 _MAX_FREE = 200
 
 
@@ -70,12 +70,15 @@ class Fit:
         True when every face was seen (no completion was needed).
     indices : ndarray of int
         Indices of the points (in the array given to :func:`fit_cluster`) this piece explains.
+    p95 : float
+        95th percentile of the points' absolute radial errors (m), same fit as ``rms``.
     """
 
     squircle: Squircle
     rms: float
     closed: bool
     indices: np.ndarray
+    p95: float = 0.0
 
 
 def _params(sq: Squircle) -> np.ndarray:
@@ -121,7 +124,7 @@ def _residuals(p: np.ndarray, q: np.ndarray, free: np.ndarray, w_free: float) ->
 
 
 def rect_error(points: np.ndarray) -> float:
-    """Mean distance of ``points (N, 2)`` to the boundary of their minimum-area rectangle."""
+    """RMS distance of ``points (N, 2)`` to the boundary of their minimum-area rectangle."""
     if len(points) < 3:
         return 0.0
     (cx, cy), (w, h), ang = cv2.minAreaRect(points.astype(np.float32))
@@ -129,7 +132,8 @@ def rect_error(points: np.ndarray) -> float:
     c, s = math.cos(t), math.sin(t)
     dx, dy = points[:, 0] - cx, points[:, 1] - cy
     u, v = np.abs(dx * c + dy * s), np.abs(dy * c - dx * s)
-    return float(np.mean(np.maximum(np.minimum(w / 2 - u, h / 2 - v), 0.0)))
+    d = np.maximum(np.minimum(w / 2 - u, h / 2 - v), 0.0)
+    return float(np.sqrt(np.mean(d * d)))
 
 
 def _subsample(a: np.ndarray, n: int) -> np.ndarray:
@@ -175,13 +179,13 @@ def _solve(seed: np.ndarray, q: np.ndarray, free: np.ndarray, cfg: PerceptionCon
     scale = np.array([0.05, 0.05, 0.2, 0.2, 0.1, 0.1])
     try:
         res = least_squares(_residuals, x0, bounds=(lo, hi), args=(q, free, 1.0), x_scale=scale,
-                            method="trf", max_nfev=40, xtol=1e-6, ftol=1e-6)
+                            method="trf", max_nfev=30, xtol=1e-6, ftol=1e-6)
     except (ValueError, np.linalg.LinAlgError):
         return None
     if not np.all(np.isfinite(res.x)):
         return None
     rp = res.fun[: len(q)]
-    return res.x, float(np.sqrt(np.mean(rp * rp))), float(np.sum(res.fun[len(q):] ** 2))
+    return res.x, float(np.sqrt(np.mean(rp * rp))), float(np.sum(res.fun[len(q):] ** 2)), float(np.percentile(np.abs(rp), 95))
 
 
 def _faces_seen(p: np.ndarray, q: np.ndarray, views: np.ndarray | None) -> np.ndarray:
@@ -294,18 +298,18 @@ def fit_squircle(points, *, views=None, free=None, config: PerceptionConfig | No
         out = _solve(seed, qs, fs, cfg)
         if out is None:
             continue
-        x, rms, pen = out
+        x, rms, pen, p95 = out
         cost = rms * rms * len(qs) + pen
         # fits of comparable point error: the one keeping free space truthful wins
         if best is None or cost < best[3] * 0.999:
-            best = (x, rms, pen, cost)
+            best = (x, rms, pen, cost, p95)
     if best is None:
-        x, rms = _seeds(qs, vs, cfg)[0], float("inf")
+        x, rms, p95 = _seeds(qs, vs, cfg)[0], 1.0, 1.0
     else:
-        x, rms = best[0], best[1]
+        x, rms, p95 = best[0], best[1], best[4]
     x, closed = _complete(x, qs, vs, cfg)
     x = _contain(x, q, cfg.inside_tol)
-    return Fit(_to_squircle(x), rms if math.isfinite(rms) else 1.0, closed, np.arange(len(q)))
+    return Fit(_to_squircle(x), rms, closed, np.arange(len(q)), p95)
 
 
 def _check(a, name: str) -> np.ndarray:
@@ -341,9 +345,10 @@ def _best_cut(points: np.ndarray, min_piece: int):
     return best
 
 
-def _split(points: np.ndarray, idx: np.ndarray, tol: float, min_piece: int, depth: int) -> list[np.ndarray]:
+def _split(points: np.ndarray, idx: np.ndarray, tol: float, min_piece: int, depth: int,
+           force: bool = False) -> list[np.ndarray]:
     sub = points[idx]
-    if depth == 0 or len(idx) < 2 * min_piece or rect_error(sub) <= tol:
+    if depth == 0 or len(idx) < 2 * min_piece or (not force and rect_error(sub) <= tol):
         return [idx]
     cut = _best_cut(sub, min_piece)
     if cut is None:
@@ -355,12 +360,97 @@ def _split(points: np.ndarray, idx: np.ndarray, tol: float, min_piece: int, dept
             + _split(points, idx[~left], tol, min_piece, depth - 1))
 
 
+def _merge_parts(points: np.ndarray, parts: list[np.ndarray], cfg: PerceptionConfig) -> list[np.ndarray]:
+    """Merge adjacent pieces whose union one rectangle explains (``rect_error <= split_tol``),
+    best pair first: the recursive cuts may split a straight wall (the bar of a T, the corner
+    of an L) that a single squircle describes."""
+    from scipy.spatial import cKDTree
+
+    parts = list(parts)
+    while len(parts) > 1:
+        trees = [cKDTree(points[p]) for p in parts]
+        best = None
+        for a in range(len(parts)):
+            for b in range(a + 1, len(parts)):
+                d, _ = trees[a].query(points[parts[b]], distance_upper_bound=cfg.link)
+                if not np.any(np.isfinite(d)):
+                    continue
+                e = rect_error(points[np.concatenate((parts[a], parts[b]))])
+                if e <= cfg.split_tol and (best is None or e < best[0]):
+                    best = (e, a, b)
+        if best is None:
+            break
+        _, a, b = best
+        parts[a] = np.concatenate((parts[a], parts[b]))
+        del parts[b]
+    return parts
+
+
+def _overlap(a: Squircle, b: Squircle, grow: float) -> bool:
+    """Whether ``a`` and ``b``, both grown by about ``grow``, overlap (boundary samples)."""
+    if math.dist(a.center, b.center) > a.bounding_radius + b.bounding_radius + 2 * grow:
+        return False
+    A = Squircle(a.center, a.width + 2 * grow, a.height + 2 * grow, a.theta, a.s)
+    B = Squircle(b.center, b.width + 2 * grow, b.height + 2 * grow, b.theta, b.s)
+    return bool(np.any(gauge(B, A.boundary_points(64)) <= 1.0) or np.any(gauge(A, B.boundary_points(64)) <= 1.0))
+
+
+def _break_cycles(q, vw, free, fits: list[Fit], cfg: PerceptionConfig, grow: float) -> list[Fit]:
+    """Merge pieces until the pieces grown by ``grow`` (the robot radius) overlap as a tree:
+    in the smallest cycle, the two overlapping pieces whose union one rectangle explains best
+    become one piece, refitted to their points."""
+    import networkx as nx
+
+    fits = list(fits)
+    while len(fits) > 2:
+        G = nx.Graph()
+        G.add_nodes_from(range(len(fits)))
+        for a in range(len(fits)):
+            for b in range(a + 1, len(fits)):
+                if _overlap(fits[a].squircle, fits[b].squircle, grow):
+                    G.add_edge(a, b)
+        cycles = nx.cycle_basis(G)
+        if not cycles:
+            break
+        cyc = min(cycles, key=len)
+        # a piece whose points the others already cover is redundant: drop it
+        drop = None
+        for a in sorted(cyc, key=lambda k: len(fits[k].indices)):
+            others = [fits[k].squircle for k in range(len(fits)) if k != a]
+            err = np.min([radial_error(o, q[fits[a].indices]) for o in others], axis=0)
+            if float(err.max()) <= cfg.inside_tol:
+                drop = a
+                break
+        if drop is not None:
+            keep_idx = fits[drop].indices
+            del fits[drop]
+            # its points stay explained: give them to the piece that contains them best
+            k = int(np.argmin([radial_error(f.squircle, q[keep_idx]).max() for f in fits]))
+            f = fits[k]
+            fits[k] = Fit(f.squircle, f.rms, f.closed, np.concatenate((f.indices, keep_idx)), f.p95)
+            continue
+        best = None
+        for a in cyc:
+            for b in cyc:
+                if a < b and G.has_edge(a, b):
+                    idx = np.concatenate((fits[a].indices, fits[b].indices))
+                    f = fit_squircle(q[idx], views=None if vw is None else vw[idx], free=free, config=cfg)
+                    if best is None or f.rms < best[0]:
+                        best = (f.rms, a, b, idx, f)
+        _, a, b, idx, f = best
+        fits[a] = Fit(f.squircle, f.rms, f.closed, idx, f.p95)
+        del fits[b]
+    return fits
+
+
 def fit_cluster(points, *, views=None, free=None, config: PerceptionConfig | None = None,
-                max_pieces: int = 8, split: bool = True) -> list[Fit]:
+                max_pieces: int = 16, split: bool = True, grow: float = 0.0) -> list[Fit]:
     """Fit a cluster with one squircle, or decompose it into overlapping pieces (section 4.2.1).
 
     Parameters are those of :func:`fit_squircle`; ``max_pieces`` bounds the decomposition
-    (depth ``log2(max_pieces)``), ``split=False`` forces a single squircle.
+    (depth ``log2(max_pieces)``), ``split=False`` forces a single squircle. With ``grow > 0``
+    (the robot radius) pieces are merged until, grown by ``grow``, they overlap as a tree
+    (no cycle), which the forest of stars needs.
 
     Returns
     -------
@@ -372,16 +462,18 @@ def fit_cluster(points, *, views=None, free=None, config: PerceptionConfig | Non
     q = _check(points, "points")
     vw = None if views is None else _check(views, "views")
     one = fit_squircle(q, views=vw, free=free, config=cfg)
-    if not split or one.rms <= cfg.split_tol or len(q) < 2 * cfg.min_piece:
+    if not split or (one.rms <= cfg.split_tol and one.p95 <= 3 * cfg.split_tol) or len(q) < 2 * cfg.min_piece:
         return [one]
     depth = max(int(math.log2(max(max_pieces, 1))), 0)
-    parts = _split(q, np.arange(len(q)), cfg.split_tol, cfg.min_piece, depth)
+    parts = _merge_parts(q, _split(q, np.arange(len(q)), cfg.split_tol, cfg.min_piece, depth, force=True), cfg)
     if len(parts) <= 1:
         return [one]
     fits = []
     for idx in parts:
         f = fit_squircle(q[idx], views=None if vw is None else vw[idx], free=free, config=cfg)
-        fits.append(Fit(f.squircle, f.rms, f.closed, idx))
+        fits.append(Fit(f.squircle, f.rms, f.closed, idx, f.p95))
+    if grow > 0:
+        fits = _break_cycles(q, vw, free, fits, cfg, grow)
     return fits
 
 

@@ -50,7 +50,7 @@ from navigation.geometry import Squircle
 
 from .config import PerceptionConfig
 from .errors import PoseJumpError, ScanError, StampError
-from .fit import Fit, fit_cluster, fit_squircle, gauge, inflate, radial_error
+from .fit import Fit, fit_cluster, fit_squircle, gauge, inflate, radial_error, rect_error
 from .ingest import Scan, parse_points, parse_pose, parse_scan
 
 __all__ = ["Estimate", "MapUpdate", "ObstacleMap"]
@@ -121,6 +121,21 @@ class MapUpdate:
         return bool(self.added or self.updated or self.removed)
 
 
+_SAMPLE_CACHE: dict[int, tuple[Squircle, np.ndarray]] = {}
+
+
+def _samples(sq: Squircle, n: int = 64) -> np.ndarray:
+    """``n`` boundary points of ``sq`` (cached per object)."""
+    hit = _SAMPLE_CACHE.get(id(sq))
+    if hit is not None and hit[0] is sq:
+        return hit[1]
+    if len(_SAMPLE_CACHE) > 4096:
+        _SAMPLE_CACHE.clear()
+    pts = sq.boundary_points(n)
+    _SAMPLE_CACHE[id(sq)] = (sq, pts)
+    return pts
+
+
 def _same(a: Squircle, b: Squircle) -> bool:
     return (a.center == b.center and a.width == b.width and a.height == b.height and a.theta == b.theta
             and a.s == b.s)
@@ -133,8 +148,10 @@ def _scale(sq: Squircle, d: float) -> Squircle:
 
 @dataclass
 class _Cluster:
-    single: bool = False  # decomposition disabled (after a merge repair)
+    single: bool = False  # decomposition disabled
     ids: list = field(default_factory=list)
+    failed_at: int = 0  # cells when its last update had to be reverted (retry after growth)
+    cells: int = 0
 
 
 class ObstacleMap:
@@ -369,6 +386,12 @@ class ObstacleMap:
         touched = self._cluster_new(new_cells, scan_cell, beam_of, scan)
         # --- which clusters need a refit
         refit: set[int] = set(touched["new"]) | set(touched["merged"])
+        for lab in touched["new"]:
+            host = self._associate(lab)
+            if host is not None:  # returns of an obstacle already estimated: same cluster
+                self._merge_labels(host, [lab])
+                refit.discard(lab)
+                refit.add(host)
         for lab in touched["grown"]:
             if lab in refit:
                 continue
@@ -383,6 +406,11 @@ class ObstacleMap:
         changed: set[int] = set()
         removed: set[int] = set()
         for lab in sorted(refit):
+            cl = self._clusters.get(lab)
+            if cl is not None and cl.failed_at:
+                n = int(np.count_nonzero(self._lab == lab))
+                if n < 1.2 * cl.failed_at + 5:
+                    continue  # its last refit was reverted: wait for more data
             self._refit(lab, proposed, changed, removed, pose)
         # --- clearances of the robot disc (it moved) and of the regions
         if pose is not None:
@@ -498,6 +526,24 @@ class ObstacleMap:
                 self._clusters[keep].ids.extend(cl.ids)
                 self._clusters[keep].single |= cl.single
 
+    def _associate(self, lab: int) -> int | None:
+        """Cluster of the estimate that contains most returns of the new cluster ``lab``
+        (within ``refit_tol``), if any: association of new clusters with existing estimates."""
+        if not self._est:
+            return None
+        idx = np.nonzero(self._lab == lab)
+        q = self._sum[idx] / self._n[idx][:, None]
+        best = None
+        for e in self._est.values():
+            sq = e.squircle
+            if np.any(np.hypot(q[:, 0] - sq.center[0], q[:, 1] - sq.center[1]) <= sq.bounding_radius + 0.05):
+                share = float(np.mean(radial_error(sq, q) <= self.config.refit_tol))
+                if share >= 0.5 and (best is None or share > best[0]):
+                    best = (share, self._resolve(e.cluster))
+        if best is None or best[1] == lab or best[1] not in self._clusters:
+            return None
+        return best[1]
+
     def _resolve(self, lab: int) -> int:
         while lab in self._alias:
             lab = self._alias[lab]
@@ -567,8 +613,8 @@ class ObstacleMap:
         q, v, free = self._cluster_data(lab)
         if not len(q):
             return
-        fits = fit_cluster(q, views=v, free=free, config=self.config, split=not cl.single)
         old = [i for i in cl.ids if i in proposed]
+        fits = fit_cluster(q, views=v, free=free, config=self.config, split=not cl.single, grow=1.05 * self.radius)
         new_ids = []
         for k, f in enumerate(fits):
             sq = f.squircle
@@ -588,6 +634,7 @@ class ObstacleMap:
             removed.add(i)
             changed.discard(i)
         cl.ids = new_ids
+        cl.failed_at = 0
         # regions: keep their discs (grown by the radius) free
         for i in list(new_ids):
             if i in changed:
@@ -656,18 +703,35 @@ class ObstacleMap:
         return msg
 
     # ------------------------------------------------------------------ forest check and repair
+    def _near(self, a: Estimate, b: Estimate, pad: float) -> bool:
+        """The inflated estimates overlap, or come within about ``pad`` of each other."""
+        A, B = a.inflated, b.inflated
+        if math.dist(A.center, B.center) > A.bounding_radius + B.bounding_radius + pad:
+            return False
+        for X, Y in ((A, B), (B, A)):
+            pts = _samples(X)
+            c = np.asarray(X.center)
+            u = pts - c
+            pts = pts + u / np.maximum(np.linalg.norm(u, axis=1, keepdims=True), 1e-12) * pad
+            if np.any(gauge(Y, pts) <= 1.0):
+                return True
+        return False
+
     def _subset(self, proposed: dict, seeds: set) -> list[int]:
-        """Ids of the estimates connected to ``seeds`` by bounding-circle proximity."""
-        ids = sorted(proposed)
+        """Ids of the estimates connected to ``seeds`` by overlap or near contact (within
+        ``min_gap`` plus 2 cm) of their inflated squircles."""
         if not seeds:
             return []
-        C = np.array([proposed[i].inflated.center for i in ids])
-        R = np.array([proposed[i].inflated.bounding_radius for i in ids])
-        near = np.hypot(C[:, None, 0] - C[None, :, 0], C[:, None, 1] - C[None, :, 1]) <= (
-            R[:, None] + R[None, :] + self.config.min_gap + 0.01)
-        _, comp = connected_components(coo_matrix(near), directed=False)
-        want = {comp[ids.index(i)] for i in seeds if i in proposed}
-        return [i for k, i in enumerate(ids) if comp[k] in want]
+        pad = self.config.min_gap + 0.02
+        todo = [i for i in seeds if i in proposed]
+        out = set(todo)
+        while todo:
+            i = todo.pop()
+            for j, e in proposed.items():
+                if j not in out and self._near(proposed[i], e, pad):
+                    out.add(j)
+                    todo.append(j)
+        return sorted(out)
 
     def _validate(self, proposed: dict, seeds: set):
         sub = self._subset(proposed, seeds)
@@ -686,15 +750,17 @@ class ObstacleMap:
         proposed[i] = Estimate(i, sq, inflate(sq, self.radius), e.cluster if cluster is None else cluster, e.rms, e.closed)
         changed.add(i)
 
-    def _merge(self, proposed: dict, a: int, b: int, changed: set, removed: set) -> None:
+    def _merge(self, proposed: dict, a: int, b: int, changed: set, removed: set) -> bool:
+        """Replace estimates ``a`` and ``b`` by one squircle covering both (False when that
+        squircle would be much larger than the two together: no merge)."""
         ea, eb = proposed[a], proposed[b]
         pts = np.concatenate((ea.squircle.boundary_points(96), eb.squircle.boundary_points(96)))
         f = fit_squircle(pts, config=self.config)
-        if ea.cluster != eb.cluster and eb.cluster in self._clusters and ea.cluster in self._clusters:
-            self._merge_labels(ea.cluster, [eb.cluster])
+        if f.squircle.width * f.squircle.height > 6.0 * (ea.squircle.width * ea.squircle.height
+                                                          + eb.squircle.width * eb.squircle.height):
+            return False
         cl = self._clusters.get(ea.cluster)
         if cl is not None:
-            cl.single = True
             if b in cl.ids:
                 cl.ids.remove(b)
             if a not in cl.ids:
@@ -703,6 +769,7 @@ class ObstacleMap:
         changed.discard(b)
         removed.add(b)
         self._set(proposed, a, f.squircle, changed, ea.cluster)
+        return True
 
     def _repair(self, err: ForestError, sub: list[int], proposed: dict, changed: set, removed: set, notes) -> bool:
         ids = [sub[k] for k in err.obstacles if 0 <= k < len(sub)]
@@ -720,26 +787,29 @@ class ObstacleMap:
             key = (rule,) + tuple(sorted(ids)) + ((-1,) if ws else ())
             n = self._attempts.get(key, 0)
             self._attempts[key] = n + 1
-            if len(ids) == 2 and n >= 3:
-                self._merge(proposed, ids[0], ids[1], changed, removed)
-                notes.append(f"merged estimates {ids[0]} and {ids[1]} ({rule})")
-                return True
+            if n >= 6:
+                return False
             i = min(ids, key=lambda k: proposed[k].squircle.area)
             self._set(proposed, i, _scale(proposed[i].squircle, _GROW_STEP), changed)
             notes.append(f"grew estimate {i} by {_GROW_STEP} m ({rule})")
             return True
         if rule == "cycle" and len(ids) >= 2:
-            best = None
+            # merge the overlapping pair a single squircle explains best (pairs of one
+            # cluster first: they are pieces of one obstacle)
+            cands = []
             for x in range(len(ids)):
                 for y in range(x + 1, len(ids)):
-                    a, b = proposed[ids[x]].squircle, proposed[ids[y]].squircle
-                    d = math.dist(a.center, b.center) - a.bounding_radius - b.bounding_radius
-                    if best is None or d < best[0]:
-                        best = (d, ids[x], ids[y])
-            _, a, b = best
-            self._merge(proposed, a, b, changed, removed)
-            notes.append(f"merged estimates {a} and {b} (cycle)")
-            return True
+                    ea, eb = proposed[ids[x]], proposed[ids[y]]
+                    if not self._near(ea, eb, 0.0):
+                        continue
+                    other = self._resolve(ea.cluster) != self._resolve(eb.cluster)
+                    pts = np.concatenate((_samples(ea.squircle), _samples(eb.squircle)))
+                    cands.append((other, rect_error(pts), ids[x], ids[y]))
+            for _, _, a, b in sorted(cands):
+                if self._merge(proposed, a, b, changed, removed):
+                    notes.append(f"merged estimates {a} and {b} (cycle)")
+                    return True
+            return False
         return False
 
     def _commit(self, stamp, proposed: dict, changed: set, removed: set, notes: list, pose):
@@ -761,11 +831,23 @@ class ObstacleMap:
             log.warning("perception: %s", msg)
             notes.append(msg)
             for i in changed | removed:
+                lab = self._resolve(proposed[i].cluster if i in proposed else self._est[i].cluster) \
+                    if (i in proposed or i in self._est) else None
+                cl = self._clusters.get(lab) if lab is not None else None
+                if cl is not None:
+                    cl.failed_at = int(np.count_nonzero(self._lab == lab))
                 if i in self._est:
                     proposed[i] = self._est[i]
                 else:
                     proposed.pop(i, None)
             changed, removed = set(), set()
+            if pose is not None:  # the restored estimates may reach the robot's new position
+                self._clear_robot(pose, proposed, changed, removed, notes)
+                if changed and self._validate(proposed, set(changed))[0] is not None:
+                    for i in changed | removed:
+                        if i in self._est:
+                            proposed[i] = self._est[i]
+                    changed, removed = set(), set()
         added = tuple(sorted(i for i in changed if i in proposed and i not in self._est))
         updated = tuple(sorted(i for i in changed if i in proposed and i in self._est
                                and not _same(self._est[i].squircle, proposed[i].squircle)))
