@@ -1,0 +1,144 @@
+"""Guarantee: squircle fitting recovers shapes seen all round, completes partial views
+conservatively (points inside, unseen extent behind the seen face), decomposes L/T/U walls
+into trees of overlapping squircles, and inflation contains the robot-radius offset."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import navigation
+from navigation import Squircle
+from perception import PerceptionConfig, ScanError, fit_cluster, fit_squircle, inflate, radial_error
+from perception.evaluation import _axis_error
+
+CFG = PerceptionConfig.from_lidar(range_max=1.0, angle_increment=math.radians(1.0))
+
+
+def _iou(a, b, lo=(-2, -2), hi=(2, 2), cell=0.01):
+    xs = np.arange(lo[0], hi[0], cell)
+    X, Y = np.meshgrid(xs, np.arange(lo[1], hi[1], cell))
+    G = np.stack((X.ravel(), Y.ravel()), axis=1)
+    ia = np.zeros(len(G), bool)
+    for s in a:
+        ia |= s.beta(G) <= 0
+    ib = np.zeros(len(G), bool)
+    for s in b:
+        ib |= s.beta(G) <= 0
+    return np.sum(ia & ib) / np.sum(ia | ib)
+
+
+def _union_boundary(parts, n=160):
+    pts = np.concatenate([p.boundary_points(n) for p in parts])
+    keep = np.ones(len(pts), bool)
+    for p in parts:
+        keep &= p.beta(pts) >= -1e-9
+    return pts[keep]
+
+
+@pytest.mark.parametrize("truth", [
+    Squircle((0.3, -0.2), 0.9, 0.2, 0.4, 0.95),
+    Squircle((0.0, 0.0), 0.5, 0.3, -1.0, 0.0),
+    Squircle((0.1, 0.1), 0.4, 0.4, 0.0, 0.5),
+])
+@pytest.mark.parametrize("noise", [0.0, 0.01])
+def test_full_view_fit_recovers_the_shape(truth, noise):
+    rng = np.random.default_rng(1)
+    pts = truth.boundary_points(200)
+    pts = pts + rng.normal(0, noise / 3, pts.shape)  # cell means: averaged noise
+    fit = fit_squircle(pts, config=CFG.with_(noise_std=noise))
+    assert _iou([truth], [fit.squircle]) >= (0.9 if noise == 0 else 0.8)
+    assert np.all(radial_error(fit.squircle, pts) <= CFG.inside_tol + 2 * noise + 1e-9)
+    if truth.s >= 0.9:
+        assert _axis_error(truth, fit.squircle) <= 5.0
+
+
+def test_one_face_is_completed_behind_it():
+    truth = Squircle((1.0, 2.0), 0.8, 0.3, 0.4, 0.95)
+    n = np.array([-math.sin(0.4), math.cos(0.4)])  # outward normal of the seen face
+    pts = truth.boundary_points(300)
+    face = pts[(pts - np.array(truth.center)) @ n > 0.149]
+    views = np.tile(-n, (len(face), 1))  # the sensor looks along -n at the face
+    fit = fit_squircle(face, views=views, config=CFG)
+    sq = fit.squircle
+    assert not fit.closed
+    assert np.all(radial_error(sq, face) <= CFG.inside_tol + 1e-9)  # observed points inside
+    # the unseen extent (thickness) is at least min_unseen and lies behind the face
+    thickness = min(sq.width, sq.height)
+    assert thickness >= CFG.min_unseen - 1e-9
+    depth = (np.array(sq.center) - face.mean(axis=0)) @ n
+    assert depth < 0  # centre behind the seen face, away from the sensor
+    # the space in front of the face (where the beams passed) stays free
+    front = face + 0.03 * n
+    assert np.all(sq.beta(front) > 0)
+
+
+def test_free_space_evidence_is_kept_outside():
+    truth = Squircle((0.0, 0.0), 0.6, 0.2, 0.0, 0.95)
+    pts = truth.boundary_points(200)
+    top = pts[pts[:, 1] > 0.09]
+    views = np.tile([0.0, -1.0], (len(top), 1))
+    free = np.stack(np.meshgrid(np.linspace(-0.4, 0.4, 9), np.linspace(0.15, 0.4, 4)), -1).reshape(-1, 2)
+    fit = fit_squircle(top, views=views, free=free, config=CFG)
+    assert np.all(fit.squircle.beta(free) > 0)
+
+
+def _check_tree(pieces, radius=0.1):
+    ws = Squircle((0.0, 0.0), 8.0, 8.0, 0.0, 0.99)
+    navigation.build_forest(ws.grow(-radius), [inflate(p, radius) for p in pieces])
+
+
+@pytest.mark.parametrize("name, parts", [
+    ("L", [Squircle((0, 0), 1.0, 0.2, 0, 0.99), Squircle((0.4, 0.4), 0.2, 1.0, 0, 0.99)]),
+    ("T", [Squircle((0, 0), 1.2, 0.2, 0, 0.99), Squircle((0, -0.5), 0.2, 0.9, 0, 0.99)]),
+    ("U", [Squircle((0, 0), 1.2, 0.2, 0.3, 0.99), Squircle((-0.5, 0.5), 0.2, 1.0, 0.3, 0.99),
+           Squircle((0.5, 0.5), 0.2, 1.0, 0.3, 0.99)]),
+])
+def test_walls_decompose_into_a_tree_of_squircles(name, parts):
+    if name == "U":  # rotate the arms with the base about the origin
+        c, s = math.cos(0.3), math.sin(0.3)
+        parts = [parts[0]] + [Squircle((c * p.center[0] - s * p.center[1], s * p.center[0] + c * p.center[1]),
+                                       p.width, p.height, p.theta, p.s) for p in parts[1:]]
+    pts = _union_boundary(parts)
+    fits = fit_cluster(pts, config=CFG, grow=0.105)
+    assert len(fits) >= 2, "a single squircle cannot explain an L/T/U wall"
+    pieces = [f.squircle for f in fits]
+    inside = np.min([radial_error(p, pts) for p in pieces], axis=0)
+    assert np.all(inside <= CFG.inside_tol + 1e-9)
+    assert _iou(parts, pieces) >= 0.8
+    _check_tree(pieces)
+
+
+def test_single_squircle_is_not_split():
+    truth = Squircle((0.0, 0.0), 0.9, 0.25, 0.7, 0.97)
+    fits = fit_cluster(truth.boundary_points(200), config=CFG)
+    assert len(fits) == 1
+
+
+@pytest.mark.parametrize("sq", [Squircle((0, 0), 1.0, 0.2, 0.3, 0.99), Squircle((1, 1), 0.3, 0.5, 2.0, 0.0),
+                                Squircle((0, 1), 0.4, 0.4, 0.0, 0.6)])
+def test_inflation_contains_the_offset(sq):
+    r = 0.1
+    big = inflate(sq, r)
+    assert (big.center, big.theta, big.s) == (sq.center, sq.theta, sq.s)
+    # every point at distance r from sq (outward offset of dense boundary samples) is inside
+    b = sq.boundary_points(720)
+    nrm = np.gradient(b, axis=0)[:, ::-1] * np.array([1.0, -1.0])
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    off = b + r * nrm
+    assert np.all(big.distance(big.boundary_points(200)[::10]) <= 1e-9)
+    assert np.all(big.beta(off) <= 1e-9)
+    assert inflate(sq, 0.0) is sq
+
+
+def test_fit_rejects_bad_arrays():
+    with pytest.raises(ScanError, match="empty cluster"):
+        fit_squircle(np.zeros((0, 2)))
+    with pytest.raises(ScanError, match=r"points: expected shape \(N, 2\)"):
+        fit_squircle(np.zeros((4, 3)))
+    with pytest.raises(ScanError, match="non-finite"):
+        fit_squircle(np.array([[0.0, 0.0], [np.nan, 1.0], [1.0, 1.0]]))
+    with pytest.raises(ScanError, match="views: expected 3 rows"):
+        fit_squircle(np.array([[0.0, 0.0], [0.5, 1.0], [1.0, 1.0]]), views=np.ones((2, 2)))
