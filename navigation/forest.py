@@ -75,6 +75,7 @@ _CENTER_M = 7  # pattern-search grid (per axis) for the common centre
 _CENTER_ROTATIONS = (0.39,)  # rotated re-polls of the pattern search
 _THIN = 0.01  # common-centre depths below this are refined with exact distances
 _CONTAINED = 1e-12  # beta tolerance of the containment test
+_PRUNE = True  # skip k-d tree queries at common-centre candidates that provably cannot win
 
 
 # ---------------------------------------------------------------------- result
@@ -486,6 +487,11 @@ def _common_centers(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, outsi
         c, sn = C[COS], C[SIN]
         return np.minimum(C[HW] - np.abs(dx * c + dy * sn), C[HH] - np.abs(dy * c - dx * sn))
 
+    def bound(rows, q):
+        # lower bound of the objective (-depth) from the rectangle depths
+        return -np.minimum(rect_depth(PI[rows], q) + gap_i[rows, None],
+                           np.where(outside[rows, None], np.inf, rect_depth(PJ[rows], q) + gap_j[rows, None]))
+
     def objective(rows, q, best=None):
         # approximate depths: distance to the nearest dense boundary sample, signed by beta
         k, n = q.shape[:2]
@@ -499,15 +505,14 @@ def _common_centers(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, outsi
             return -np.minimum(da, db)
         # pattern rounds: a point whose depth bound in I or J is <= the best depth -best cannot be
         # better; it gets the bound (>= best), and the k-d tree queries are skipped for it
-        out = -np.minimum(rect_depth(PI[rows], q) + gap_i[rows, None],
-                          np.where(outside[rows, None], np.inf, rect_depth(PJ[rows], q) + gap_j[rows, None]))
-        r, p = np.nonzero(out < best[:, None])
+        out = bound(rows, q)
+        r, p = np.nonzero(out <= best[:, None])  # skipped points are strictly worse than best
         if r.size:
             qs = q[r, p]
             d, _ = slabs.query(qs, I[rows[r]])
             da = np.where(_beta(PI[rows[r]], qs[:, None])[:, 0] < 0, d, -d)
             out[r, p] = -da  # >= best where da <= -best: J is not needed there
-            need = -da < best[r]
+            need = -da <= best[r]
             r2, p2, q2 = r[need], p[need], qs[need]
             if r2.size:
                 d, _ = slabs.query(q2, J[rows[r2]])
@@ -520,14 +525,21 @@ def _common_centers(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, outsi
     tx, ty = np.meshgrid(t, t, indexing="ij")
     pts = lo[:, None, :] + (hi - lo)[:, None, :] * np.stack((tx.ravel(), ty.ravel()), axis=1)[None]
     rows = np.arange(E)
-    v = objective(rows, pts)
+    # exact values at the few points with the best bounds give a value to beat; the bounded
+    # objective then skips every point whose bound is strictly worse (same argmin)
+    if _PRUNE:
+        top = np.argpartition(bound(rows, pts), 7, axis=1)[:, :8]
+        some = objective(rows, np.take_along_axis(pts, top[:, :, None], axis=1))
+        v = objective(rows, pts, some.min(axis=1))
+    else:
+        v = objective(rows, pts)
     k = np.argmin(v, axis=1)
     start, f0 = pts[rows, k], v[rows, k]
     w = (hi - lo) / g
-    c, f = _pattern_min(objective, start, w, f0, m=_CENTER_M, shrink=0.5, tol=tol, max_rounds=80, bounded=True)
+    c, f = _pattern_min(objective, start, w, f0, m=_CENTER_M, shrink=0.5, tol=tol, max_rounds=80, bounded=_PRUNE)
     for rot in _CENTER_ROTATIONS:  # the max-min has ridges; re-poll along rotated directions
         c, f = _pattern_min(objective, c, 0.1 * w, f, m=_CENTER_M, shrink=0.5, tol=tol, max_rounds=60, rotation=rot,
-                            bounded=True)
+                            bounded=_PRUNE)
     depth = np.minimum(-_signed_distance(bodies, I, c), sgn * _signed_distance(bodies, J, c))
     # Thin intersections: sample distances are too coarse below a few sample spacings; refine
     # those (few) with exact distances.

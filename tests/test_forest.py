@@ -468,15 +468,14 @@ class TestFastPathsMatchReferences:
         slow, _, _ = F._pair_distance(bodies, I, J)
         assert np.array_equal(fast, slow)
 
-    def test_bounded_poll_gives_the_unbounded_result(self, monkeypatch):
+    @pytest.mark.parametrize("name", ["cluttered20", "office"])
+    def test_bounded_poll_gives_the_unbounded_result(self, monkeypatch, name):
         """Skipping k-d tree queries at points that provably cannot improve changes nothing."""
         import navigation.forest as F
 
-        w = load_world("cluttered20")
+        w = load_world(name)
         fast = build_forest(w.workspace, w.obstacles)
-        plain = F._pattern_min
-        monkeypatch.setattr(F, "_pattern_min",
-                            lambda fun, *a, bounded=False, **kw: plain(fun, *a, bounded=False, **kw))
+        monkeypatch.setattr(F, "_PRUNE", False)
         slow = build_forest(w.workspace, w.obstacles)
         assert np.array_equal(fast.center, slow.center)
         assert np.array_equal(fast.center_depth, slow.center_depth)
