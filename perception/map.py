@@ -783,7 +783,8 @@ class ObstacleMap:
                 changed.discard(i)
                 removed.add(i)
             return True
-        if rule in ("too-close", "shallow-overlap"):
+        if rule in ("too-close", "shallow-overlap") or (rule == "cycle" and ws and len(ids) == 1):
+            # (one estimate crossing the workspace boundary twice: grown, its two crossings join)
             key = (rule,) + tuple(sorted(ids)) + ((-1,) if ws else ())
             n = self._attempts.get(key, 0)
             self._attempts[key] = n + 1
