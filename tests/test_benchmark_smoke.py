@@ -55,9 +55,10 @@ def test_control_benchmark_quick_writes_results(tmp_path, capsys):
     assert control_bench.main(["--quick", "--out", str(out)]) == 0
     data = json.loads((out / "control.json").read_text())
     assert data["benchmark"] == "control" and data["quick"] is True
-    (row,) = data["worlds"]
+    row, total = data["worlds"]
     assert row["world"] == "simple" and row["runs"] == 2 and row["collisions"] == 0
     assert 0.0 <= row["success_rate"] <= 1.0 and row["step_median"] > 0.0
+    assert total["world"] == "all" and total["runs"] == 2 and total["reached"] == row["reached"]
     table = (out / "control.md").read_text()
-    assert "| simple | 4 |" in table
+    assert "| simple | 4 |" in table and "| all | - |" in table
     assert capsys.readouterr().out.strip() == table.strip()
