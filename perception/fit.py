@@ -231,15 +231,27 @@ def _complete(p: np.ndarray, q: np.ndarray, views, cfg: PerceptionConfig) -> tup
 
 
 def _contain(p: np.ndarray, q: np.ndarray, tol: float) -> np.ndarray:
-    """Scale the extents about the centre until every point is within ``tol`` of the inside."""
+    """Grow the extents until every point is within ``tol`` of the inside: each axis by what the
+    points beyond its faces need (an elongated shape is not inflated along its length for a
+    point beyond its side), then, to be sure, uniformly."""
+    p = p.copy()
+    for _ in range(4):
+        u, v = _local(p, q)
+        a, b = math.exp(p[2]), math.exp(p[3])
+        g = _gauge_xy(u / a, v / b, p[5])
+        need = g / (1.0 + tol / np.maximum(np.hypot(u, v), 1e-9))
+        out = need > 1.0
+        if not np.any(out):
+            return p
+        on_x = np.abs(u / a) >= np.abs(v / b)
+        for k, sel in ((2, out & on_x), (3, out & ~on_x)):
+            if np.any(sel):
+                p[k] += math.log(float(need[sel].max())) + 1e-9
     u, v = _local(p, q)
-    a, b = math.exp(p[2]), math.exp(p[3])
-    g = _gauge_xy(u / a, v / b, p[5])
-    d = np.hypot(u, v)
-    need = g / (1.0 + tol / np.maximum(d, 1e-9))
+    g = _gauge_xy(u / math.exp(p[2]), v / math.exp(p[3]), p[5])
+    need = g / (1.0 + tol / np.maximum(np.hypot(u, v), 1e-9))
     f = float(need.max()) if len(need) else 1.0
     if f > 1.0:
-        p = p.copy()
         p[2] += math.log(f) + 1e-9
         p[3] += math.log(f) + 1e-9
     return p

@@ -189,6 +189,9 @@ class ObstacleMap:
             regions = [(reg.center, reg.radius) for reg in regions.values()]
         self.regions = [(np.asarray(c, dtype=float).reshape(2), float(rr)) for c, rr in regions]
         self.cspace_workspace = workspace.grow(-r) if r > 0 else workspace
+        wsb = self.cspace_workspace.boundary_points(4096)
+        self._ws_tree = cKDTree(wsb)
+        self._ws_spacing = float(np.max(np.linalg.norm(wsb - np.roll(wsb, 1, axis=0), axis=1)))
         cfg = self.config
         bp = workspace.boundary_points(512)
         self._lo = bp.min(axis=0) - 0.1
@@ -738,6 +741,14 @@ class ObstacleMap:
         if not sub:
             return None, sub
         cfg = self.config
+        if len(sub) == 1:
+            # a lone estimate well inside the workspace satisfies every rule (no overlap, no
+            # neighbour, no crossing, clear of the boundary): no need to run the construction
+            pts = _samples(proposed[sub[0]].inflated, 128)
+            inside = bool(np.all(self.cspace_workspace.beta(pts) < 0))
+            # distance to the boundary >= distance to its nearest sample - half the spacing
+            if inside and float(self._ws_tree.query(pts)[0].min()) - self._ws_spacing > cfg.min_gap + 0.02:
+                return None, sub
         try:
             build_forest(self.cspace_workspace, [proposed[i].inflated for i in sub], min_gap=cfg.min_gap,
                          min_overlap=cfg.min_overlap)
