@@ -110,17 +110,18 @@ def radial_error(sq: Squircle, q) -> np.ndarray:
     return np.linalg.norm(q - np.asarray(sq.center), axis=1) * (1.0 - 1.0 / g)
 
 
-def _residuals(p: np.ndarray, q: np.ndarray, free: np.ndarray, w_free: float) -> np.ndarray:
+def _residuals(p: np.ndarray, q: np.ndarray, free: np.ndarray, w_free: float, ref=None) -> np.ndarray:
     u, v = _local(p, q)
     a, b = math.exp(p[2]), math.exp(p[3])
+    reg = np.zeros(0) if ref is None else ref[2] * np.array([max(a - ref[0], 0.0), max(b - ref[1], 0.0)])
     g = np.maximum(_gauge_xy(u / a, v / b, p[5]), 1e-6)
     r = np.hypot(u, v) * (1.0 - 1.0 / g)
     if len(free):
         fu, fv = _local(p, free)
         gf = np.maximum(_gauge_xy(fu / a, fv / b, p[5]), 0.2)
         pen = w_free * np.hypot(fu, fv) * np.maximum(1.0 / gf - 1.0, 0.0)
-        return np.concatenate((r, pen))
-    return r
+        return np.concatenate((r, pen, reg))
+    return np.concatenate((r, reg))
 
 
 def rect_error(points: np.ndarray) -> float:
@@ -178,14 +179,17 @@ def _solve(seed: np.ndarray, q: np.ndarray, free: np.ndarray, cfg: PerceptionCon
     x0 = np.clip(seed, lo + 1e-9, hi - 1e-9)
     scale = np.array([0.05, 0.05, 0.2, 0.2, 0.1, 0.1])
     try:
-        res = least_squares(_residuals, x0, bounds=(lo, hi), args=(q, free, 1.0), x_scale=scale,
-                            method="trf", max_nfev=30, xtol=1e-6, ftol=1e-6)
+        # extents beyond the seed's (the rectangle of the points, with the unseen minimum) are
+        # penalised: the data does not constrain the unseen side, the estimate stays small there
+        ref = (math.exp(x0[2]), math.exp(x0[3]), 0.1 * math.sqrt(len(q)))
+        res = least_squares(_residuals, x0, bounds=(lo, hi), args=(q, free, 1.0, ref), x_scale=scale,
+                            method="trf", max_nfev=20, xtol=1e-6, ftol=1e-6)
     except (ValueError, np.linalg.LinAlgError):
         return None
     if not np.all(np.isfinite(res.x)):
         return None
     rp = res.fun[: len(q)]
-    return res.x, float(np.sqrt(np.mean(rp * rp))), float(np.sum(res.fun[len(q):] ** 2)), float(np.percentile(np.abs(rp), 95))
+    return res.x, float(np.sqrt(np.mean(rp * rp))), float(np.sum(res.fun[len(q):-2] ** 2)), float(np.percentile(np.abs(rp), 95))
 
 
 def _faces_seen(p: np.ndarray, q: np.ndarray, views: np.ndarray | None) -> np.ndarray:
@@ -307,6 +311,8 @@ def fit_squircle(points, *, views=None, free=None, config: PerceptionConfig | No
         return Fit(_to_squircle(p), 0.0, False, np.arange(len(q)))
     best = None
     for seed in _seeds(qs, vs, cfg):
+        if best is not None and best[1] <= 0.5 * cfg.split_tol and best[2] == 0.0:
+            break  # the rectangle seed already explains the points and the free space
         out = _solve(seed, qs, fs, cfg)
         if out is None:
             continue

@@ -600,13 +600,13 @@ class ObstacleMap:
         e_ws = radial_error(ws, q)
         near = e_ws > -cfg.ws_touch
         if np.any(near):
-            c = np.asarray(ws.center)
-            g = gauge(ws, q[near])
-            u = q[near] - c
-            nu = u / np.maximum(np.linalg.norm(u, axis=1, keepdims=True), 1e-12)
-            virt = c + u / g[:, None] + nu * (cfg.ws_touch + 0.03)
+            # virtual returns just outside, along the boundary's outward normal
+            qn = q[near]
+            nrm = ws.gradient(qn)
+            nrm = nrm / np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-12)
+            virt = qn + nrm * (-e_ws[near] + cfg.ws_touch + 0.03)[:, None]
             q = np.concatenate((q, virt))
-            v = np.concatenate((v, nu))
+            v = np.concatenate((v, nrm))
         return q, v, free
 
     def _refit(self, lab: int, proposed: dict, changed: set, removed: set, pose) -> None:
