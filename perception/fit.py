@@ -137,6 +137,24 @@ def rect_error(points: np.ndarray) -> float:
     return float(np.sqrt(np.mean(d * d)))
 
 
+def _free_inside(points: np.ndarray, free: np.ndarray, margin: float) -> int:
+    """Free points deeper than ``margin`` inside the minimum-area rectangle of ``points``."""
+    if len(points) < 3 or free is None or not len(free):
+        return 0
+    (cx, cy), (w, h), ang = cv2.minAreaRect(points.astype(np.float32))
+    t = math.radians(ang)
+    c, s = math.cos(t), math.sin(t)
+    dx, dy = free[:, 0] - cx, free[:, 1] - cy
+    u, v = np.abs(dx * c + dy * s), np.abs(dy * c - dx * s)
+    return int(np.count_nonzero((u < w / 2 - margin) & (v < h / 2 - margin)))
+
+
+def _piece_cost(points: np.ndarray, free, margin: float) -> float:
+    """Decomposition cost of a piece: ``n rect_error`` plus ``margin / 2`` per free point its
+    rectangle would swallow (free space must stay free)."""
+    return len(points) * rect_error(points) + 0.5 * margin * _free_inside(points, free, margin)
+
+
 def _subsample(a: np.ndarray, n: int) -> np.ndarray:
     if len(a) <= n:
         return a
@@ -344,7 +362,7 @@ def _check(a, name: str) -> np.ndarray:
     return arr
 
 
-def _best_cut(points: np.ndarray, min_piece: int):
+def _best_cut(points: np.ndarray, min_piece: int, free=None, margin: float = 0.04):
     (cx, cy), _, ang = cv2.minAreaRect(points.astype(np.float32))
     t = math.radians(ang)
     c, s = math.cos(t), math.sin(t)
@@ -357,28 +375,29 @@ def _best_cut(points: np.ndarray, min_piece: int):
             nl = int(left.sum())
             if nl < min_piece or len(points) - nl < min_piece:
                 continue
-            cost = nl * rect_error(points[left]) + (len(points) - nl) * rect_error(points[~left])
+            cost = _piece_cost(points[left], free, margin) + _piece_cost(points[~left], free, margin)
             if best is None or cost < best[0]:
                 best = (cost, left)
     return best
 
 
 def _split(points: np.ndarray, idx: np.ndarray, tol: float, min_piece: int, depth: int,
-           force: bool = False) -> list[np.ndarray]:
+           force: bool = False, free=None, margin: float = 0.04) -> list[np.ndarray]:
     sub = points[idx]
-    if depth == 0 or len(idx) < 2 * min_piece or (not force and rect_error(sub) <= tol):
+    whole = _piece_cost(sub, free, margin)
+    if depth == 0 or len(idx) < 2 * min_piece or (not force and whole <= tol * len(idx)):
         return [idx]
-    cut = _best_cut(sub, min_piece)
+    cut = _best_cut(sub, min_piece, free, margin)
     if cut is None:
         return [idx]
     cost, left = cut
-    if cost >= 0.7 * len(idx) * rect_error(sub):  # not a clear improvement: keep it whole
+    if cost >= 0.9 * whole:  # not a clear improvement: keep it whole
         return [idx]
-    return (_split(points, idx[left], tol, min_piece, depth - 1)
-            + _split(points, idx[~left], tol, min_piece, depth - 1))
+    return (_split(points, idx[left], tol, min_piece, depth - 1, free=free, margin=margin)
+            + _split(points, idx[~left], tol, min_piece, depth - 1, free=free, margin=margin))
 
 
-def _merge_parts(points: np.ndarray, parts: list[np.ndarray], cfg: PerceptionConfig) -> list[np.ndarray]:
+def _merge_parts(points: np.ndarray, parts: list[np.ndarray], cfg: PerceptionConfig, free=None) -> list[np.ndarray]:
     """Merge adjacent pieces whose union one rectangle explains (``rect_error <= split_tol``),
     best pair first: the recursive cuts may split a straight wall (the bar of a T, the corner
     of an L) that a single squircle describes."""
@@ -393,8 +412,10 @@ def _merge_parts(points: np.ndarray, parts: list[np.ndarray], cfg: PerceptionCon
                 d, _ = trees[a].query(points[parts[b]], distance_upper_bound=cfg.link)
                 if not np.any(np.isfinite(d)):
                     continue
-                e = rect_error(points[np.concatenate((parts[a], parts[b]))])
-                if e <= cfg.split_tol and (best is None or e < best[0]):
+                u = points[np.concatenate((parts[a], parts[b]))]
+                e = rect_error(u)
+                if (e <= cfg.split_tol and _free_inside(u, free, cfg.free_cell) == 0
+                        and (best is None or e < best[0])):
                     best = (e, a, b)
         if best is None:
             break
@@ -480,10 +501,17 @@ def fit_cluster(points, *, views=None, free=None, config: PerceptionConfig | Non
     q = _check(points, "points")
     vw = None if views is None else _check(views, "views")
     one = fit_squircle(q, views=vw, free=free, config=cfg)
-    if not split or (one.rms <= cfg.split_tol and one.p95 <= 3 * cfg.split_tol) or len(q) < 2 * cfg.min_piece:
+    swallowed = 0
+    if free is not None and len(free):
+        fr0 = _check(free, "free")
+        swallowed = int(np.count_nonzero(radial_error(one.squircle, fr0) < -cfg.free_cell))
+    if (not split or (one.rms <= cfg.split_tol and one.p95 <= 3 * cfg.split_tol and swallowed < 3)
+            or len(q) < 2 * cfg.min_piece):
         return [one]
     depth = max(int(math.log2(max(max_pieces, 1))), 0)
-    parts = _merge_parts(q, _split(q, np.arange(len(q)), cfg.split_tol, cfg.min_piece, depth, force=True), cfg)
+    fr = None if free is None else _check(free, "free")
+    parts = _merge_parts(q, _split(q, np.arange(len(q)), cfg.split_tol, cfg.min_piece, depth, force=True,
+                                   free=fr, margin=cfg.free_cell), cfg, fr)
     if len(parts) <= 1:
         return [one]
     fits = []
