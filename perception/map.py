@@ -14,7 +14,8 @@ The map starts knowing only the workspace and grows from scans:
    breakpoint rule (:meth:`PerceptionConfig.breakpoint`); clusters that become connected merge.
 4. **Refit** of a cluster only when its data contradicts its estimates: a new cell more than
    ``refit_tol`` outside them, or a newly free cell more than ``free_tol`` inside them (so the
-   same scan processed twice changes nothing). The cluster is fitted by
+   same scan processed twice changes nothing); at most once every 5 scans per cluster unless a
+   return is more than ``0.75 radius`` outside (it would soon leave the inflated estimate). The cluster is fitted by
    :func:`perception.fit.fit_cluster` (one squircle or a decomposition), extended through the
    workspace boundary when it touches it (walls on the boundary).
 5. **Clearances**: an estimate is trimmed (the face towards the disc moved back, the far side
@@ -36,6 +37,7 @@ from __future__ import annotations
 
 import logging
 import math
+from collections import Counter
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 
@@ -60,6 +62,7 @@ log = logging.getLogger("perception")
 _MAX_CELL_COUNT = 50  # returns averaged per cell (later ones are ignored: bounded work)
 _REPAIR_STEPS = 16
 _GROW_STEP = 0.03
+_REFIT_EVERY = 5  # scans between non-urgent refits of one cluster
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -151,7 +154,8 @@ class _Cluster:
     single: bool = False  # decomposition disabled
     ids: list = field(default_factory=list)
     failed_at: int = 0  # cells when its last update had to be reverted (retry after growth)
-    cells: int = 0
+    last_fit: int = -10**9  # scan count at its last refit
+    pending: bool = False  # contradicted by data while not due: refit when due
 
 
 class ObstacleMap:
@@ -212,6 +216,9 @@ class ObstacleMap:
         self.last_stamp: float | None = None
         self.last_pose: tuple[float, float, float] | None = None
         self.scans = 0
+        #: counters: refit triggers (``refit_new``, ``refit_merged``, ``refit_grown``,
+        #: ``refit_free``), ``forest_checks`` (calls of build_forest), ``repairs``, ``reverts``
+        self.stats: Counter = Counter()
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -401,10 +408,25 @@ class ObstacleMap:
             cells = touched["cells"][lab]
             q = self._sum[cells[:, 0], cells[:, 1]] / self._n[cells[:, 0], cells[:, 1]][:, None]
             err = self._cluster_error(lab, q)
-            if err > cfg.refit_tol:
+            # urgent when a return is about to leave the inflated estimate; otherwise at most
+            # one refit per cluster every ``_REFIT_EVERY`` scans (bounded work while exploring)
+            due = self.scans - self._clusters[lab].last_fit >= _REFIT_EVERY
+            if err > cfg.refit_tol and (due or err > 0.75 * self.radius):
                 refit.add(lab)
+                self.stats["refit_grown"] += 1
+            elif err > cfg.refit_tol:
+                self._clusters[lab].pending = True
+        self.stats["refit_new"] += len(touched["new"])
+        self.stats["refit_merged"] += len(touched["merged"])
         if len(new_free) and self._est:
-            refit |= self._contradicted(new_free, pose)
+            contra = {lab for lab in self._contradicted(new_free, pose) if lab in self._clusters}
+            for lab in contra - refit:
+                self._clusters[lab].pending = True
+            self.stats["refit_free"] += len(contra - refit)
+        if len(new_cells) or len(new_free):  # (a repeated scan brings nothing new: no refit)
+            for lab, cl in self._clusters.items():
+                if cl.pending and self.scans - cl.last_fit >= _REFIT_EVERY:
+                    refit.add(lab)
         proposed = dict(self._est)
         changed: set[int] = set()
         removed: set[int] = set()
@@ -638,6 +660,8 @@ class ObstacleMap:
             changed.discard(i)
         cl.ids = new_ids
         cl.failed_at = 0
+        cl.last_fit = self.scans
+        cl.pending = False
         # regions: keep their discs (grown by the radius) free
         for i in list(new_ids):
             if i in changed:
@@ -749,6 +773,7 @@ class ObstacleMap:
             # distance to the boundary >= distance to its nearest sample - half the spacing
             if inside and float(self._ws_tree.query(pts)[0].min()) - self._ws_spacing > cfg.min_gap + 0.02:
                 return None, sub
+        self.stats["forest_checks"] += 1
         try:
             build_forest(self.cspace_workspace, [proposed[i].inflated for i in sub], min_gap=cfg.min_gap,
                          min_overlap=cfg.min_overlap)
@@ -831,6 +856,7 @@ class ObstacleMap:
             err, sub = self._validate(proposed, seeds)
             if err is None:
                 break
+            self.stats["repairs"] += 1
             if not self._repair(err, sub, proposed, changed, removed, notes):
                 break
             if pose is not None:
@@ -839,6 +865,7 @@ class ObstacleMap:
             err = ForestError("repairs did not converge")
         if err is not None:
             # revert the estimates this update touched (the previous map was accepted)
+            self.stats["reverts"] += 1
             msg = f"reverted estimates {sorted(changed | removed)}: {err}"
             log.warning("perception: %s", msg)
             notes.append(msg)
