@@ -59,7 +59,7 @@ def run(name: str, noise: float, goals: int):
         if not upd.changed:
             return
         checks[0] += 1
-        if len(m) > 10 and checks[0] % 4:  # large maps: every 4th change (and the last, below)
+        if len(m) > 8 and checks[0] % 8:  # large maps: every 8th change (and the last, below)
             return
         try:
             m.forest()
@@ -75,7 +75,7 @@ def run(name: str, noise: float, goals: int):
 
 
 DEFAULT_CASES = [("simple", 0.0, 10), ("simple", 0.01, 10), ("random0", 0.01, 6)]
-SLOW_CASES = ([(w, n, 24) for w in ("simple", "office", "cluttered20") for n in (0.0, 0.01)]
+SLOW_CASES = ([(w, n, 16) for w in ("simple", "office", "cluttered20") for n in (0.0, 0.01)]
               + [(f"random{s}", n, 10) for s in SLOW_SEEDS for n in (0.0, 0.01)])
 CASES = ([pytest.param(*c, id=f"{c[0]}-noise{c[1]}") for c in DEFAULT_CASES]
          + [pytest.param(*c, id=f"{c[0]}-noise{c[1]}-full", marks=pytest.mark.slow) for c in SLOW_CASES])
