@@ -53,7 +53,7 @@ TARGETS = {
     "p95": (20e-3, "p95 <= 20 ms"),
     "safety": (0.99, "safety >= 99 %"),
 }
-FULL = {"goals": 24}
+FULL = {"goals": 40}
 QUICK = {"goals": 3}
 
 

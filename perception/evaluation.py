@@ -11,7 +11,9 @@ Used by the tests (``tests/test_perception*.py``) and the benchmark
 * :func:`score` computes the figures of the issue: safety (share of true boundary points hit
   by a beam that lie inside the union of the inflated estimates; the robot's position never
   inside one), accuracy (IoU with the truth of every group of overlapping true obstacles whose
-  visible boundary was seen all round, rotation error of isolated rectangles).
+  visible boundary was seen all round, inside the workspace, against the estimates that group
+  owns - each estimate belongs to the group holding most of its area -, rotation error of
+  isolated rectangles).
 """
 
 from __future__ import annotations
@@ -179,6 +181,7 @@ class Score:
     rotation_errors: list  # degrees, isolated rectangles seen all round
     estimates: int
     stable_failures: int = 0
+    iou_groups: list = field(default_factory=list)  # true obstacle indices of each IoU entry
 
 
 def score(world, omap: ObstacleMap, res: DriveResult, *, seen_radius: float = 0.03, seen_share: float = 0.9,
@@ -196,8 +199,21 @@ def score(world, omap: ObstacleMap, res: DriveResult, *, seen_radius: float = 0.
     from scipy.spatial import cKDTree
 
     tree = cKDTree(hits) if len(hits) else None
-    ious, rots, seen_groups = [], [], 0
-    for grp in components(obs):
+    ious, rots, seen_groups, groups = [], [], 0, []
+    comps = components(obs)
+    # each estimate belongs to the group of true obstacles holding most of its area (samples)
+    owner = []
+    for e in est:
+        b = e.boundary_points(64)
+        c = np.asarray(e.center)
+        samp = np.concatenate([c + f * (b - c) for f in (0.25, 0.5, 0.75, 1.0)])
+        counts = [sum(int(np.count_nonzero(obs[i].beta(samp) <= 0)) for i in g) for g in comps]
+        if max(counts) > 0:
+            owner.append(int(np.argmax(counts)))
+        else:
+            owner.append(int(np.argmin([min(math.dist(e.center, obs[i].center) - obs[i].bounding_radius for i in g)
+                                        for g in comps])))
+    for gi, grp in enumerate(comps):
         # visible boundary: inside the workspace, not inside another member
         bps = []
         for i in grp:
@@ -229,10 +245,11 @@ def score(world, omap: ObstacleMap, res: DriveResult, *, seen_radius: float = 0.
         inws = ws.beta(G) < 0
         G = G[inws]
         truth = _inside_any([obs[i] for i in grp], G)
-        near = [e for e in est if math.dist(e.center, (lo + hi) / 2) < e.bounding_radius + np.linalg.norm(hi - lo)]
+        near = [e for e, o in zip(est, owner) if o == gi]
         mine = _inside_any(near, G)
         union = np.sum(truth | mine)
         ious.append(float(np.sum(truth & mine) / union) if union else 1.0)
+        groups.append(list(grp))
         if len(grp) == 1:
             o = obs[grp[0]]
             if o.s >= 0.9 and max(o.width, o.height) >= 1.5 * min(o.width, o.height):
@@ -245,7 +262,8 @@ def score(world, omap: ObstacleMap, res: DriveResult, *, seen_radius: float = 0.
                         best, bi = v, e
                 if bi is not None:
                     rots.append(_axis_error(o, bi))
-    return Score(safety, scan_safety, res.robot_covered, seen_groups, ious, rots, len(est), res.stable_failures)
+    return Score(safety, scan_safety, res.robot_covered, seen_groups, ious, rots, len(est), res.stable_failures,
+                 groups)
 
 
 def _axis_error(a: Squircle, b: Squircle) -> float:
