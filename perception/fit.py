@@ -13,8 +13,10 @@ error* is
 .. math::  e(q) = |q - c| \\, (1 - 1 / g(q))   \\qquad (> 0 \\text{ outside}).
 
 :func:`fit_squircle` minimises ``sum e(q_i)^2`` over the cluster's points plus a penalty for
-free-space evidence inside the estimate, by ``scipy.optimize.least_squares`` over
-``(c, log a, log b, theta, s)``, started from OpenCV's ``minAreaRect`` (``s = 0.9``) and
+free-space evidence inside the estimate and a penalty ``0.1 sqrt(N) max(a - a0, 0)`` (and for
+``b``) on extents beyond the starting rectangle's (the unseen side of a partial view is not
+constrained by data), by ``scipy.optimize.least_squares`` over ``(c, log a, log b, theta, s)``,
+started from OpenCV's ``minAreaRect`` (``s = 0.9``) and
 ``fitEllipse`` (``s = 0.1``) of the points; of the two results the one with the smaller total
 cost is kept, the free-space penalty deciding between fits of comparable point error. Then
 the *conservative completion*:
