@@ -693,7 +693,7 @@ class ObstacleMap:
         d0 = float(sq.distance(p))
         if d0 >= need and e.inflated.beta(p) > 0:
             return ""
-        for _ in range(6):
+        for _ in range(12):
             th = sq.theta
             c, s = math.cos(th), math.sin(th)
             dx, dy = p[0] - sq.center[0], p[1] - sq.center[1]
@@ -719,8 +719,11 @@ class ObstacleMap:
             w, hh = (2 * newh, sq.height) if k == 0 else (sq.width, 2 * newh)
             sq = Squircle((float(ctr[0]), float(ctr[1])), w, hh, th, sq.s)
             inf = inflate(sq, self.radius)
-            if float(sq.distance(p)) >= need and inf.beta(p) > 0:
+            d = float(sq.distance(p))
+            if d >= need and inf.beta(p) > 0:
                 break
+            if d >= need:  # the inflation (extents + 2 k r) bulges past the offset: cut deeper
+                need += 0.02
         else:
             inf = inflate(sq, self.radius)
         proposed[i] = Estimate(i, sq, inf, e.cluster, e.rms, e.closed)
