@@ -3,31 +3,32 @@
 The controller's safety limit (:mod:`navigation.control`) needs, at every step, a distance
 ``d(q)`` such that the disc of radius ``d(q)`` around ``q`` is free. Exact point-to-squircle
 distances need an iterative search; this module gives a certified lower bound instead, at
-most half a boundary-sample spacing (2.5 mm by default) below the exact distance:
+most half a boundary-sample arc (2.5 mm by default) below the exact distance, from the boundary
+samples of :class:`~navigation.geometry.ExactDistance` (the exact distance lies in
+``[d - h, d]`` for the distance ``d`` to the nearest sample and half the largest arc ``h``):
 
 * an obstacle squircle lies inside its bounding rectangle (``|u|, |w| <= 1`` in normalised
   coordinates whenever ``beta <= 0``), so the closed-form distance to the rectangle is a lower
-  bound; where it is below the distance still in question, the obstacle's boundary samples
-  refine it as for the workspace below;
-* the workspace boundary is sampled at construction (arc-length spacing at most ``spacing``);
-  the distance to the nearest sample minus half the largest spacing is a lower bound of the
-  distance to the boundary (the nearest boundary point lies within half a spacing, along the
-  boundary, of a sample). It is only computed where it matters: the distance to the
-  workspace's bounding rectangle minus the largest distance from a boundary sample to that
-  rectangle's boundary is a lower bound, and points where it is at least ``far`` keep it.
+  bound; where it is below the distance still in question, the sampled bound refines it;
+* for the workspace, the distance to its bounding rectangle's boundary is an upper bound, and
+  that minus the largest distance from a boundary sample to the rectangle's boundary (plus
+  ``h``) a lower bound; where the lower bound is below the distance still in question (at most
+  ``far``), the sampled bound refines it.
 
-All bounds are vectorised over ``(N, 2)`` points; points inside an obstacle or outside the
-workspace get bound 0.
+Each refined bound is the larger of the two lower bounds. All bounds are vectorised over
+``(N, 2)`` points; points inside an obstacle or outside the workspace get bound 0.
 """
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from ._arrays import as_points, restore
+from .geometry import ExactDistance, beta_rows
 
-__all__ = ["ClearanceBound"]
-
+__all__ = ["ClearanceBound", "forest_clearance"]
 
 
 def _local(rows: np.ndarray, pts: np.ndarray):
@@ -37,6 +38,13 @@ def _local(rows: np.ndarray, pts: np.ndarray):
     return dx * rows[:, 2] + dy * rows[:, 3], dy * rows[:, 2] - dx * rows[:, 3]
 
 
+def _inside_rectangle(rows: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    """Distance ``(N, M)`` from ``pts`` to the boundaries of the rectangles of ``rows``
+    (negative outside): an upper bound on the distance to the boundary of an enclosing squircle."""
+    u, w = _local(rows, pts)
+    return np.minimum(rows[:, 4] - np.abs(u), rows[:, 5] - np.abs(w))
+
+
 class ClearanceBound:
     """Lower bound on the distance from points to the obstacles and the workspace boundary.
 
@@ -44,6 +52,8 @@ class ClearanceBound:
     ----------
     workspace : navigation.Squircle
     obstacles : sequence of navigation.Squircle
+    spacing : float
+        Largest arc between boundary samples (m); the bound is at most ``spacing / 2`` low.
 
     Examples
     --------
@@ -55,23 +65,12 @@ class ClearanceBound:
     """
 
     def __init__(self, workspace, obstacles, spacing: float = 0.005):
-        self._workspace = workspace
-        self._obstacles = tuple(obstacles)
-        self._obs_samples, self._obs_half = [], []
-        for o in self._obstacles:
-            m = int(np.clip(np.ceil(2.0 * (o.width + o.height) / spacing), 64, 65536))
-            op = np.asarray(o.point_at(o.boundary_psi(m)), dtype=float)
-            self._obs_samples.append(op)
-            self._obs_half.append(0.5 * float(np.linalg.norm(np.diff(np.vstack((op, op[:1])), axis=0), axis=1).max()))
-        self._ws = workspace.packed()
-        self._rows = np.array([o.packed() for o in obstacles], dtype=float).reshape(-1, 7)
-        perimeter = 2.0 * (workspace.width + workspace.height)  # >= the squircle's perimeter
-        n = int(np.clip(np.ceil(perimeter / spacing), 256, 65536))
-        bp = np.asarray(workspace.point_at(workspace.boundary_psi(n)), dtype=float)
-        self._samples = bp
-        self._half = 0.5 * float(np.linalg.norm(np.diff(np.vstack((bp, bp[:1])), axis=0), axis=1).max())
-        u, w = _local(self._ws[None], bp)
-        self._gap = float(np.minimum(self._ws[4] - np.abs(u[:, 0]), self._ws[5] - np.abs(w[:, 0])).max()) + self._half
+        self._m = m = len(obstacles)
+        self._table = ExactDistance(tuple(obstacles) + (workspace,), spacing=spacing, split=m, min_samples=64)
+        self._rows = self._table.P[:m]
+        self._ws = self._table.P[m:]
+        _, half = self._table.sampled(np.zeros((1, 2)), np.array([m]))
+        self._gap = float(_inside_rectangle(self._ws, self._table.boundary_samples(m)).max()) + float(half[0])
 
     def __call__(self, q, far: float = np.inf) -> np.ndarray:
         """Lower bound ``(N,)`` (or a float for ``(2,)``) on the clearance of ``q``.
@@ -79,26 +78,31 @@ class ClearanceBound:
         Where the clearance is at least ``far`` the bound may be any value ``>= far``.
         """
         pts, single = as_points(q, "q")
-        u, w = _local(self._ws[None], pts)
-        d = np.minimum(self._ws[4] - np.abs(u[:, 0]), self._ws[5] - np.abs(w[:, 0]))  # upper bound
-        inside = d > 0
-        inside[inside] = np.asarray(self._workspace.beta(pts[inside]), dtype=float).reshape(-1) < 0.0
-        near = np.nonzero(inside & (d - self._gap < far))[0]
-        if len(near):
-            diff = self._samples[None, :, :] - pts[near, None, :]
-            d[near] = np.sqrt(np.einsum("nkc,nkc->nk", diff, diff).min(axis=1)) - self._half
-        d = np.where(inside, d, 0.0)
-        if len(self._rows):
+        m = self._m
+        upper = _inside_rectangle(self._ws, pts)[:, 0]
+        inside = upper > 0
+        inside[inside] = beta_rows(self._ws[0], pts[inside, 0], pts[inside, 1]) < 0.0
+        bound = np.empty((len(pts), m + 1))
+        bound[:, m] = upper - self._gap
+        if m:
             u, w = _local(self._rows, pts)
             ex = np.maximum(np.abs(u) - self._rows[:, 4], 0.0)
             ey = np.maximum(np.abs(w) - self._rows[:, 5], 0.0)
-            rect = np.sqrt(ex * ex + ey * ey)  # (N, M) lower bounds
-            n, k = np.nonzero(rect < np.minimum(d, far)[:, None])
-            for j in np.unique(k):
-                sel = n[k == j]
-                diff = self._obs_samples[j][None, :, :] - pts[sel, None, :]
-                dj = np.sqrt(np.einsum("nkc,nkc->nk", diff, diff).min(axis=1)) - self._obs_half[j]
-                inside = np.asarray(self._obstacles[j].beta(pts[sel]), dtype=float).reshape(-1) <= 0.0
-                rect[sel, j] = np.where(inside, 0.0, np.maximum(dj, 0.0))
-            d = np.minimum(d, rect.min(axis=1))
+            bound[:, :m] = np.sqrt(ex * ex + ey * ey)
+        n, j = np.nonzero(bound < np.minimum(upper, far)[:, None])
+        if len(n):
+            d, h = self._table.sampled(pts[n], j)
+            refined = np.maximum(d - h, bound[n, j])
+            obstacle = j < m
+            hit = beta_rows(self._table.P[j[obstacle]], pts[n[obstacle], 0], pts[n[obstacle], 1]) <= 0.0
+            refined[np.nonzero(obstacle)[0][hit]] = 0.0
+            bound[n, j] = refined
+        d = np.where(inside, bound.min(axis=1), 0.0)
         return restore(np.maximum(d, 0.0), single)
+
+
+@functools.lru_cache(maxsize=32)
+def forest_clearance(forest) -> ClearanceBound:
+    """The :class:`ClearanceBound` of a forest's workspace and obstacles, built once per forest
+    (its boundary tables take tens of milliseconds; every field on one forest shares them)."""
+    return ClearanceBound(forest.workspace, forest.obstacles)

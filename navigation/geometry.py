@@ -369,6 +369,13 @@ class ExactDistance:
             pts = np.stack([sq.point_at(p) for p, sq in zip(psi, self.squircles[lo:hi])])
             self._groups.append((lo, hi, psi, pts, 0.5 * _max_arc(self.squircles[lo:hi], psi)))
 
+    def boundary_samples(self, i: int) -> np.ndarray:
+        """Boundary samples ``(n, 2)`` of squircle ``i``."""
+        for lo, hi, _, pts_g, _ in self._groups:
+            if lo <= i < hi:
+                return pts_g[i - lo]
+        raise IndexError(f"no squircle {i} among {len(self.squircles)}")
+
     def sampled(self, q: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Unsigned distances ``d`` of the points ``q (K, 2)`` to the nearest boundary samples of
         the squircles ``j (K,)``, and ``h``, half the largest arc between consecutive samples.

@@ -73,7 +73,7 @@ import numpy as np
 
 from ._arrays import as_points, restore
 from ._jet import Jet, logistic
-from .clearance import ClearanceBound
+from .clearance import forest_clearance
 from .errors import NavigationError, OutsideFreeSpaceError
 
 __all__ = ["OrientedField", "OrientedEval", "wrap_angle", "DIPOLE_FRACTION", "GRADIENT_FLOOR",
@@ -184,7 +184,7 @@ class OrientedField:
         if not (math.isfinite(strength) and strength > 0):
             raise NavigationError(f"strength must be a positive finite number, got {strength}")
         self.strength = strength
-        self.clearance = ClearanceBound(nf.forest.workspace, nf.forest.obstacles)
+        self.clearance = forest_clearance(nf.forest)
         """Certified lower bound ``q -> d`` on the distance to the field's obstacles and
         workspace boundary (:class:`~navigation.clearance.ClearanceBound`; the obstacles are
         those the navigation function was built on, grown by its ``inflation``)."""
