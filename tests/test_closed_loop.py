@@ -28,15 +28,14 @@ import numpy as np
 import pytest
 
 import navigation
-from navigation.control import ControllerConfig, track
-from navigation.oriented import OrientedField, wrap_angle
-from service.sim import Simulator
+from navigation.control import ControllerConfig
+from navigation.oriented import OrientedField
 
 from .conftest import shared_world
+from .test_control import run_closed_loop
 from .worldgen import random_forest_world, random_free_points
 
-POS_TOL, HEADING_TOL = 0.05, 0.1
-MAX_TIME = 120.0  # simulated seconds per run
+MAX_TIME, DT = 120.0, 0.1  # simulated seconds per run, control period
 FAST = [("simple", 10), ("office", 5), ("random0", 5), ("random1", 5)]
 SLOW = [("simple", 100), ("office", 100)] + [(f"random{s}", 100) for s in range(30)]
 
@@ -45,20 +44,6 @@ def _world(name: str):
     if name.startswith("random"):
         return random_forest_world(int(name[len("random"):]), gap=0.3)
     return shared_world(name)
-
-
-def _episode(world, field: OrientedField, start, cfg: ControllerConfig) -> tuple[bool, Simulator]:
-    sim = Simulator(world, seed=0, pose=start)
-    for _ in range(int(round(MAX_TIME / sim.dt))):
-        x, y, th = sim.pose
-        if math.hypot(x - field.goal[0], y - field.goal[1]) < POS_TOL and abs(wrap_angle(th - field.heading)) < HEADING_TOL:
-            return True, sim
-        cmd = track((x, y, th), field, cfg)
-        assert math.isfinite(cmd.v) and math.isfinite(cmd.omega), cmd
-        assert abs(cmd.v) <= cfg.v_max + 1e-12 and abs(cmd.omega) <= cfg.omega_max + 1e-12, cmd
-        result = sim.step((cmd.v, cmd.omega))
-        assert result.collision is None, f"{field}: collision from {start}: {result.collision}"
-    return False, sim
 
 
 def _check_world(name: str, n_starts: int):
@@ -72,7 +57,7 @@ def _check_world(name: str, n_starts: int):
     failures = []
     for s in random_free_points(world, n_starts, rng, margin=r + 0.05):
         start = (float(s[0]), float(s[1]), float(rng.uniform(-math.pi, math.pi)))
-        reached, sim = _episode(world, field, start, cfg)
+        reached, sim = run_closed_loop(world, field, start, cfg, max_steps=int(round(MAX_TIME / DT)))
         assert sim.metrics.min_clearance > 0.0 and not sim.metrics.collisions
         if not reached:
             failures.append(f"from {np.round(start, 3).tolist()} ended at {np.round(sim.pose, 3).tolist()}")

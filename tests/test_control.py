@@ -21,15 +21,17 @@ from .worldgen import random_free_points
 POS_TOL, HEADING_TOL = 0.05, 0.1
 
 
-def _run(world, field, start, cfg, max_steps=1500):
-    """Closed loop at dt = 0.1 s (noise-free). Returns (reached, simulator)."""
+def run_closed_loop(world, field, start, cfg, max_steps=1500):
+    """Closed loop at dt = 0.1 s (noise-free), asserting finite commands within the limits and
+    no collision at every step. Returns (reached, simulator)."""
     sim = Simulator(world, seed=0, pose=start)
     for _ in range(max_steps):
         x, y, th = sim.pose
         if math.hypot(x - field.goal[0], y - field.goal[1]) < POS_TOL and abs(wrap_angle(th - field.heading)) < HEADING_TOL:
             return True, sim
         cmd = track((x, y, th), field, cfg)
-        assert abs(cmd.v) <= cfg.v_max + 1e-12 and abs(cmd.omega) <= cfg.omega_max + 1e-12
+        assert math.isfinite(cmd.v) and math.isfinite(cmd.omega), cmd
+        assert abs(cmd.v) <= cfg.v_max + 1e-12 and abs(cmd.omega) <= cfg.omega_max + 1e-12, cmd
         result = sim.step((cmd.v, cmd.omega))
         assert result.collision is None, f"collision from {start}: {result.collision}"
     return False, sim
@@ -46,7 +48,7 @@ def test_reaches_goal_pose_without_collision_on_simple(seed):
     field = OrientedField(nf, heading=rng.uniform(-np.pi, np.pi))
     starts = random_free_points(world, 8, rng, margin=r + 0.05)
     for s in starts:
-        reached, sim = _run(world, field, (s[0], s[1], rng.uniform(-np.pi, np.pi)), cfg)
+        reached, sim = run_closed_loop(world, field, (s[0], s[1], rng.uniform(-np.pi, np.pi)), cfg)
         assert reached, f"{field}: from {s} ended at {sim.pose} after {sim.time:.1f} s"
         assert sim.metrics.min_clearance > 0.0 and not sim.metrics.collisions
 
