@@ -2,7 +2,7 @@
 
 Run from the repository root::
 
-    python -m benchmarks.control [--quick] [--out benchmarks/results] [--starts 10] [--random 5]
+    python -m benchmarks.control [--quick] [--out benchmarks/results] [--starts 10] [--goals 2] [--random 5] [--jobs 1]
 
 For each world (``simple``, ``office`` with all obstacles known, and random forest worlds from
 ``tests.worldgen`` with ``gap=0.3`` so that they stay forests in the robot's configuration
@@ -77,33 +77,33 @@ def _worlds(n_random: int):
 
 
 def _world_row(job) -> dict:
+    """Closed-loop runs of one world: ``job = (name, world, starts, goals)``."""
     name, world, starts, goals = job
-    if True:
-        rng = np.random.default_rng(0)
-        r = world.robot.radius
-        cfg = ControllerConfig.from_robot(world.robot)
-        eps, times = [], []
-        for g in range(goals):
-            goal = random_free_points(world, 1, rng, margin=r + 0.2)[0]
-            field = OrientedField(navigation.NavigationFunction(world, goal=goal, inflation=r),
-                                  heading=rng.uniform(-math.pi, math.pi))
-            for s in random_free_points(world, starts, rng, margin=r + 0.05):
-                e = _episode(world, field, (s[0], s[1], rng.uniform(-math.pi, math.pi)), cfg)
-                times += e.pop("step_times")
-                eps.append(e)
-        ok = [e for e in eps if e["reached"]]
-        row = {
-            "world": name, "n_obstacles": len(world.obstacles), "runs": len(eps), "reached": len(ok),
-            "success_rate": len(ok) / len(eps), "collisions": sum(e["collisions"] for e in eps),
-            "min_clearance": min(e["min_clearance"] for e in eps),
-            "mean_distance": statistics.fmean(e["distance"] for e in ok) if ok else None,
-            "mean_time": statistics.fmean(e["time"] for e in ok) if ok else None,
-            "flips_per_m": statistics.fmean(e["flips_per_m"] for e in eps),
-            "curvature": statistics.fmean(e["curvature"] for e in eps),
-            "step_median": statistics.median(times), "step_pass": statistics.median(times) <= STEP_TARGET,
-        }
-        log(f"[bench] {name}: {row['reached']}/{row['runs']} reached, {row['collisions']} collisions")
-        return row
+    rng = np.random.default_rng(0)
+    r = world.robot.radius
+    cfg = ControllerConfig.from_robot(world.robot)
+    eps, times = [], []
+    for g in range(goals):
+        goal = random_free_points(world, 1, rng, margin=r + 0.2)[0]
+        field = OrientedField(navigation.NavigationFunction(world, goal=goal, inflation=r),
+                              heading=rng.uniform(-math.pi, math.pi))
+        for s in random_free_points(world, starts, rng, margin=r + 0.05):
+            e = _episode(world, field, (s[0], s[1], rng.uniform(-math.pi, math.pi)), cfg)
+            times += e.pop("step_times")
+            eps.append(e)
+    ok = [e for e in eps if e["reached"]]
+    row = {
+        "world": name, "n_obstacles": len(world.obstacles), "runs": len(eps), "reached": len(ok),
+        "success_rate": len(ok) / len(eps), "collisions": sum(e["collisions"] for e in eps),
+        "min_clearance": min(e["min_clearance"] for e in eps),
+        "mean_distance": statistics.fmean(e["distance"] for e in ok) if ok else None,
+        "mean_time": statistics.fmean(e["time"] for e in ok) if ok else None,
+        "flips_per_m": statistics.fmean(e["flips_per_m"] for e in eps),
+        "curvature": statistics.fmean(e["curvature"] for e in eps),
+        "step_median": statistics.median(times), "step_pass": statistics.median(times) <= STEP_TARGET,
+    }
+    log(f"[bench] {name}: {row['reached']}/{row['runs']} reached, {row['collisions']} collisions")
+    return row
 
 
 def _total(rows: list[dict]) -> dict:
