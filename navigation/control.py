@@ -38,12 +38,11 @@ Choices where the paper is silent or loose, and why:
   paper's control period), a step moves the robot by at most ``v dt <= d(q)``, so the robot
   stays in the grown free space and its disc never touches an obstacle, whatever the field
   does. The cap is continuous in the pose and only acts within ``v_max * safety_horizon``
-  (5 cm at 0.5 m/s) of a grown boundary. (A horizon of 0.2 s, moving at most half the
-  clearance per step, gave the same success but more turn-rate oscillation, measured with
-  ``benchmarks.control``.) It is applied to ``v``
-  before ``v`` enters the feed-forward term of (24b): a robot held still must not turn by the
-  amount the field would rotate under a motion it does not make. ``safety_horizon=0``
-  disables it.
+  (5 cm at 0.5 m/s) of a grown boundary. It is applied to ``v`` before ``v`` enters the
+  feed-forward term of (24b): a robot held still must not turn by the amount the field would
+  rotate under a motion it does not make. ``safety_horizon=0`` disables it. (A horizon of
+  0.2 s, moving at most half the clearance per step, gave the same success but more turn-rate
+  oscillation, measured with ``benchmarks.control``.)
 * **Outside free space or degenerate field.** The oriented field's outside contract gives a
   unit vector back into free space: the controller turns towards it and only moves once it
   faces it (heading gate). At the goal itself ``theta_gamma = theta_G``. Non-finite poses raise
