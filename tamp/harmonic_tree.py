@@ -1,0 +1,603 @@
+"""Oriented harmonic trees: waypoint paths between two task poses (paper 001 section 4.1.1,
+eq. 7-8), their edge costs (eq. 26) and their online revision (section 4.2.3).
+
+A harmonic tree ``T_{g -> g'} = (V, B, gamma, (v_0, v_G))`` (eq. 7) has the oriented vertices
+``V = {v_0, v_G} u (roadmap positions x headings)``, the directed edges ``B`` between vertices
+whose positions see each other safely (:class:`tamp.roadmap.Roadmap`), and the edge cost of
+eq. 26::
+
+    gamma(v_n, v_{n+1}) = d(q_n, q_{n+1}) + w . Q_gamma(theta_n, theta_{n+1})
+    Q_gamma = [ |theta_gamma(q_n) - theta_n| , |theta_{q_{n+1} - q_n} - theta_{n+1}| ]
+
+A* (eq. 8) with the admissible, consistent heuristic ``|q - q_G|`` finds the cheapest path
+``P = v_0 v_1 ... v_G``; its cost ``sum gamma`` is the navigation-map cost of the transition
+(the equation after eq. 26).
+
+Where the paper is vague, and what we chose
+-------------------------------------------
+* ``theta_gamma(q_n)`` is the direction at ``q_n`` of the oriented field that drives the robot
+  to ``v_{n+1}``. Evaluating it needs one navigation function and one
+  :class:`navigation.OrientedField` per target pose (15-70 ms each on the shared worlds, for
+  hundreds of targets per tree), so we use the cheap estimate ``theta_gamma(q_n) ~
+  theta_{q_{n+1} - q_n}``: the edge is a safe straight segment, and the field of a goal in plain
+  sight starts out along it (exactly so in an obstacle-free disc, approximately elsewhere). The
+  first term then measures the initial turn, the second the final steering, as the paper
+  describes them. :func:`rotation_terms` and :func:`edge_cost` accept an explicit
+  ``theta_gamma`` for callers that evaluate the field.
+* A zero-length edge (start and goal at one position) has no direction; its terms are
+  ``[|theta_{n+1} - theta_n|, 0]`` (rotation in place).
+* Orientations: every roadmap position carries ``n_headings`` headings ``2 pi k / n_headings``
+  (paper: "augmented by orientations"); the terminals carry exactly their own heading.
+* Angle differences are wrapped to ``[0, pi]``.
+* Infeasibility is an exception, :class:`NoTreePathError`, with a :class:`TreeFailure` reason
+  (the start or goal is not in free space, or no path exists): a navigation map removes the
+  transition (section 4.2.4) on catching it.
+
+Revision (section 4.2.3): :func:`revise_trees` trims and regenerates the shared roadmap
+(:meth:`tamp.roadmap.Roadmap.with_obstacles`, steps I-II) and re-runs A* for every tree with the
+current weights (step III). :meth:`RotationWeights.fit` is the least-squares update
+``w* = (Q^T Q)^-1 Q^T (gamma* - d)`` from the measured costs of traversed edges; the new weights
+apply to every tree (pass them to :func:`plan_tree` / :func:`revise_trees`).
+
+Symbols
+-------
+=====================  ==============================================================
+``v_n = (q_n, theta_n)``  oriented vertex (position m, heading rad)
+``d``                  translation ``|q_{n+1} - q_n|`` (m)
+``Q_gamma``            rotation terms ``(2,)`` (rad)
+``w = (w_1, w_2)``     rotation weights (m / rad), paper's initial value ``(0.1, 0.1)``
+``gamma``              edge cost (eq. 26)
+=====================  ==============================================================
+"""
+
+from __future__ import annotations
+
+import enum
+import heapq
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from navigation.errors import TampError
+from navigation.geometry import beta_rows, pack
+
+from .roadmap import Roadmap, grown, segments_clear
+
+__all__ = [
+    "RotationWeights",
+    "HarmonicTree",
+    "TreeFailure",
+    "NoTreePathError",
+    "RevisionResult",
+    "rotation_terms",
+    "edge_cost",
+    "plan_tree",
+    "tree_graph",
+    "revise_trees",
+    "headings",
+]
+
+_HALVINGS = 8  # buffer halvings tried for a terminal inside the buffer zone
+
+
+def _wrap_abs(a):
+    """``|a|`` after wrapping to ``(-pi, pi]``: a value in ``[0, pi]``."""
+    return np.abs(np.remainder(np.asarray(a, dtype=float) + np.pi, 2.0 * np.pi) - np.pi)
+
+
+def headings(n: int) -> np.ndarray:
+    """The heading set ``2 pi k / n`` wrapped to ``(-pi, pi]``, shape ``(n,)``."""
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+        raise TampError(f"n_headings must be a positive int, got {n!r}")
+    h = np.remainder(2.0 * np.pi * np.arange(n) / n + np.pi, 2.0 * np.pi) - np.pi
+    return np.where(h == -np.pi, np.pi, h)
+
+
+# ---------------------------------------------------------------------- eq. 26
+def rotation_terms(q_from, theta_from, q_to, theta_to, theta_gamma=None) -> np.ndarray:
+    """``Q_gamma(theta_n, theta_{n+1})`` of eq. 26 for ``K`` edges, shape ``(K, 2)`` (or ``(2,)``).
+
+    Parameters
+    ----------
+    q_from, q_to : (2,) or (K, 2)
+        Edge ends.
+    theta_from, theta_to : float or (K,)
+        Headings at the ends.
+    theta_gamma : float or (K,), optional
+        Direction of the oriented field at ``q_from``; default the segment direction (module
+        docstring).
+    """
+    a = np.asarray(q_from, dtype=float)
+    b = np.asarray(q_to, dtype=float)
+    single = a.ndim == 1 and b.ndim == 1
+    a, b = np.atleast_2d(a), np.atleast_2d(b)
+    v = b - a
+    length = np.hypot(v[:, 0], v[:, 1])
+    th0 = np.broadcast_to(np.asarray(theta_from, dtype=float), length.shape)
+    th1 = np.broadcast_to(np.asarray(theta_to, dtype=float), length.shape)
+    phi = np.where(length > 0, np.arctan2(v[:, 1], v[:, 0]), th1)
+    tg = phi if theta_gamma is None else np.broadcast_to(np.asarray(theta_gamma, dtype=float), length.shape)
+    Q = np.stack([_wrap_abs(tg - th0), _wrap_abs(phi - th1)], axis=1)
+    return Q[0] if single else Q
+
+
+def edge_cost(q_from, theta_from, q_to, theta_to, weights=None, theta_gamma=None):
+    """Edge cost ``gamma = d + w . Q_gamma`` of eq. 26 (float, or ``(K,)`` for ``(K, 2)`` ends)."""
+    w = (weights if weights is not None else RotationWeights()).as_array()
+    a = np.asarray(q_from, dtype=float)
+    b = np.asarray(q_to, dtype=float)
+    Q = rotation_terms(a, theta_from, b, theta_to, theta_gamma)
+    d = np.linalg.norm(np.atleast_2d(b) - np.atleast_2d(a), axis=1)
+    cost = d + np.atleast_2d(Q) @ w
+    return float(cost[0]) if (a.ndim == 1 and b.ndim == 1) else cost
+
+
+@dataclass(frozen=True, slots=True)
+class RotationWeights:
+    """The rotation weights ``w = (w_1, w_2)`` of eq. 26, shared by every tree (> 0).
+
+    Examples
+    --------
+    >>> w = RotationWeights(0.17, 0.23)
+    >>> d = np.array([1.0, 2.0, 0.5]); Q = np.array([[0.1, 0.5], [1.0, 0.2], [0.3, 0.3]])
+    >>> RotationWeights.fit(d, Q, d + Q @ w.as_array()) == w
+    True
+    """
+
+    w1: float = 0.1
+    w2: float = 0.1
+
+    def __post_init__(self):
+        for name in ("w1", "w2"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.floating)) or not (math.isfinite(v) and v > 0):
+                raise TampError(f"RotationWeights.{name} must be a finite number > 0, got {v!r}")
+            object.__setattr__(self, name, float(v))
+
+    def as_array(self) -> np.ndarray:
+        return np.array([self.w1, self.w2])
+
+    @classmethod
+    def fit(cls, translation, rotation, measured, *, floor: float = 1e-6) -> "RotationWeights":
+        """Least-squares weights from traversed edges (paper 001 section 4.2.3, step III).
+
+        ``w* = (Q^T Q)^-1 Q^T (gamma* - d)``, computed with :func:`numpy.linalg.lstsq`; a
+        component that comes out below ``floor`` (the paper needs ``w > 0``) is set to ``floor``
+        (only possible when the measurements contradict the model).
+
+        Parameters
+        ----------
+        translation : (H,)
+            Translations ``d`` of the traversed edges (:attr:`HarmonicTree.translations`).
+        rotation : (H, 2)
+            Their rotation terms ``Q_gamma`` (:attr:`HarmonicTree.rotations`).
+        measured : (H,)
+            Measured costs ``gamma*``.
+
+        Raises
+        ------
+        TampError
+            Shapes disagree, values are not finite, or ``Q^T Q`` is singular (fewer than two
+            independent samples).
+        """
+        d = np.asarray(translation, dtype=float).reshape(-1)
+        Q = np.asarray(rotation, dtype=float)
+        g = np.asarray(measured, dtype=float).reshape(-1)
+        if Q.ndim != 2 or Q.shape[1] != 2 or len(Q) != len(d) or len(g) != len(d):
+            raise TampError(f"fit needs translation (H,), rotation (H, 2), measured (H,); got shapes "
+                            f"{d.shape}, {Q.shape}, {g.shape}")
+        if not (np.all(np.isfinite(d)) and np.all(np.isfinite(Q)) and np.all(np.isfinite(g))):
+            raise TampError("fit needs finite samples")
+        if len(d) < 2 or np.linalg.matrix_rank(Q) < 2:
+            raise TampError(f"cannot fit the rotation weights: Q^T Q is singular ({len(d)} sample(s), rank "
+                            f"{np.linalg.matrix_rank(Q) if len(d) else 0}); keep the current weights")
+        w, *_ = np.linalg.lstsq(Q, g - d, rcond=None)
+        w = np.maximum(w, floor)
+        return cls(float(w[0]), float(w[1]))
+
+
+# ---------------------------------------------------------------------- results and errors
+class TreeFailure(enum.Enum):
+    """Why no harmonic tree path exists."""
+
+    START_BLOCKED = "start_blocked"  #: the start position is not in the robot's free space
+    GOAL_BLOCKED = "goal_blocked"  #: the goal position is not in the robot's free space
+    DISCONNECTED = "disconnected"  #: no safe path joins them (e.g. a walled-off goal)
+
+
+class NoTreePathError(TampError):
+    """No harmonic-tree path between two poses.
+
+    Attributes
+    ----------
+    start, goal : tuple of float
+        The poses ``(x, y, theta)``.
+    reason : TreeFailure
+    """
+
+    def __init__(self, start, goal, reason: TreeFailure, detail: str = ""):
+        self.start = tuple(float(v) for v in start)
+        self.goal = tuple(float(v) for v in goal)
+        self.reason = reason
+        what = {
+            TreeFailure.START_BLOCKED: "the start position is not in free space",
+            TreeFailure.GOAL_BLOCKED: "the goal position is not in free space",
+            TreeFailure.DISCONNECTED: "no safe path connects them (the goal is walled off)",
+        }[reason]
+        msg = (f"no harmonic-tree path from ({self.start[0]:.3f}, {self.start[1]:.3f}) to "
+               f"({self.goal[0]:.3f}, {self.goal[1]:.3f}): {what}")
+        super().__init__(msg + (f" ({detail})" if detail else ""))
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class HarmonicTree:
+    """The A* path of one harmonic tree (eq. 8) with its eq. 26 costs.
+
+    Attributes
+    ----------
+    start, goal : tuple (x, y, theta)
+    waypoints : tuple of (x, y, theta)
+        ``v_0 v_1 ... v_G``; first is ``start``, last is ``goal``.
+    vertices : tuple of int
+        Roadmap vertex index of every waypoint (``-1`` for the terminals).
+    translations : (N,) array
+        ``d`` of each of the ``N = len(waypoints) - 1`` edges.
+    rotations : (N, 2) array
+        ``Q_gamma`` of each edge.
+    edge_costs : (N,) array
+        ``gamma`` of each edge (eq. 26).
+    cost : float
+        ``sum(edge_costs)``: the navigation-map cost of the transition.
+    weights : RotationWeights
+        The weights the costs were computed with.
+    n_headings : int
+    expanded : int
+        Nodes A* expanded.
+    """
+
+    start: tuple
+    goal: tuple
+    waypoints: tuple
+    vertices: tuple
+    translations: np.ndarray
+    rotations: np.ndarray
+    edge_costs: np.ndarray
+    cost: float
+    weights: RotationWeights
+    n_headings: int
+    expanded: int = 0
+
+    @property
+    def positions(self) -> np.ndarray:
+        """Waypoint positions ``(N + 1, 2)``."""
+        return np.array([w[:2] for w in self.waypoints])
+
+    def recost(self, weights: RotationWeights) -> float:
+        """The cost of this same path under other weights (no search)."""
+        return float(self.translations.sum() + (self.rotations @ weights.as_array()).sum()) if len(
+            self.translations) else 0.0
+
+
+# ---------------------------------------------------------------------- terminals
+def _pose(p, name: str) -> np.ndarray:
+    try:
+        a = np.asarray(p, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise TampError(f"{name} must be a pose (x, y, theta), got {p!r}") from None
+    if a.shape != (3,) or not np.all(np.isfinite(a)):
+        raise TampError(f"{name} must be a finite pose (x, y, theta), got {p!r}")
+    a[2] = math.pi - float(np.remainder(math.pi - a[2], 2.0 * math.pi))  # wrap to (-pi, pi]
+    return a
+
+
+@dataclass(frozen=True, slots=True)
+class _Terminal:
+    """A start or goal position with the buffer levels its incident edges are checked with."""
+
+    q: np.ndarray
+    amounts: np.ndarray  # per obstacle: r + level (level = b unless the terminal sits in the buffer)
+    P: np.ndarray  # packed obstacles grown by ``amounts``
+
+
+def _terminal(rm: Roadmap, q: np.ndarray, start, goal, reason: TreeFailure) -> _Terminal:
+    """Buffer levels for edges at ``q``: ``b`` where ``q`` is outside ``G_j``, else the largest
+    ``min(b, c / 2) / 2^k`` (``c`` the exact clearance of ``q`` to the inflated obstacle) whose
+    grown squircle leaves ``q`` outside. Raises when ``q`` is not in free space at all."""
+    r, b = rm.radius, rm.config.buffer
+    m = len(rm.obstacles)
+    amounts = np.full(m, r + b)
+    rows = rm.P.copy()
+    if not (rm.workspace.beta(q) < 0 and -float(rm.workspace.distance(q)) > r):
+        raise NoTreePathError(start, goal, reason, "outside the workspace shrunk by the robot radius")
+    if rm.free_workspace.beta(q) >= 0:
+        c = -float(rm.workspace.distance(q)) - r
+        level = min(b, 0.5 * c)
+        for _ in range(_HALVINGS):
+            if grown(rm.workspace, -(r + level)).beta(q) < 0:
+                break
+            level *= 0.5
+        else:
+            raise NoTreePathError(start, goal, reason, "too close to the workspace boundary")
+    if m:
+        inside = np.nonzero(beta_rows(rm.P, q[0], q[1]) <= 0)[0]
+        for j in inside:
+            o = rm.obstacles[j]
+            c = float(o.distance(q)) - r
+            if c <= 0:
+                raise NoTreePathError(start, goal, reason, f"inside obstacle {j} inflated by the robot radius")
+            level = min(b, 0.5 * c)
+            for _ in range(_HALVINGS):
+                sq = grown(o, r + level) if r + level > 0 else o
+                if sq.beta(q) > 0:
+                    break
+                level *= 0.5
+            else:
+                raise NoTreePathError(start, goal, reason, f"too close to obstacle {j}")
+            amounts[j] = r + level
+            rows[j] = pack([sq])[0]
+    return _Terminal(q[:2].copy(), amounts, rows)
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class _Problem:
+    """One tree's terminals wired to the roadmap."""
+
+    rm: Roadmap
+    start: np.ndarray
+    goal: np.ndarray
+    theta: np.ndarray  # heading set
+    from_start: tuple  # (vertices, lengths, angles)
+    to_goal: tuple  # (vertices, lengths, angles from vertex to goal)
+    direct: bool
+
+
+def _visible_from(rm: Roadmap, t: _Terminal):
+    pts = rm.points
+    if len(pts) == 0:
+        return np.zeros(0, dtype=np.intp), np.zeros(0), np.zeros(0)
+    vec = pts - t.q
+    length = np.hypot(vec[:, 0], vec[:, 1])
+    cand = np.nonzero(length <= rm.config.vicinity)[0]
+    ok = segments_clear(t.P, np.broadcast_to(t.q, (len(cand), 2)), pts[cand])
+    v = cand[ok]
+    return v, length[v], np.arctan2(vec[v, 1], vec[v, 0])
+
+
+def _problem(rm: Roadmap, start, goal, n_headings: int) -> _Problem:
+    if not isinstance(rm, Roadmap):
+        raise TampError(f"expected a tamp.roadmap.Roadmap, got {type(rm).__name__}")
+    s = _pose(start, "start")
+    g = _pose(goal, "goal")
+    theta = headings(n_headings)
+    ts = _terminal(rm, s[:2], s, g, TreeFailure.START_BLOCKED)
+    tg = _terminal(rm, g[:2], s, g, TreeFailure.GOAL_BLOCKED)
+    fs = _visible_from(rm, ts)
+    vg, lg, ag = _visible_from(rm, tg)
+    # edges run vertex -> goal: reverse the direction
+    tog = (vg, lg, np.arctan2(-np.sin(ag), -np.cos(ag)))
+    direct = False
+    if math.dist(s[:2], g[:2]) <= rm.config.vicinity:
+        rows = np.where((ts.amounts <= tg.amounts)[:, None], ts.P, tg.P) if len(ts.P) else ts.P
+        direct = bool(segments_clear(rows, s[None, :2], g[None, :2])[0])
+    return _Problem(rm, s, g, theta, fs, tog, direct)
+
+
+# ---------------------------------------------------------------------- A* (eq. 8)
+def plan_tree(roadmap: Roadmap, start, goal, weights: RotationWeights | None = None, n_headings: int = 8) -> HarmonicTree:
+    """The cheapest waypoint path of the harmonic tree from ``start`` to ``goal`` (eq. 7-8, 26).
+
+    Parameters
+    ----------
+    roadmap : Roadmap
+        Shared vertex positions and safe edges (:class:`tamp.roadmap.Roadmap`).
+    start, goal : (3,) sequence
+        Poses ``(x, y, theta)``.
+    weights : RotationWeights, optional
+        Default ``(0.1, 0.1)`` (paper 001 section 5).
+    n_headings : int
+        Headings per roadmap position.
+
+    Returns
+    -------
+    HarmonicTree
+
+    Raises
+    ------
+    NoTreePathError
+        With ``reason`` START_BLOCKED / GOAL_BLOCKED (position not in free space) or
+        DISCONNECTED (no path).
+    TampError
+        Malformed poses or parameters.
+    """
+    weights = RotationWeights() if weights is None else weights
+    if not isinstance(weights, RotationWeights):
+        raise TampError(f"weights must be RotationWeights, got {type(weights).__name__}")
+    pb = _problem(roadmap, start, goal, n_headings)
+    return _astar(pb, weights, n_headings)
+
+
+def _astar(pb: _Problem, weights: RotationWeights, H: int) -> HarmonicTree:
+    rm = pb.rm
+    w1, w2 = weights.w1, weights.w2
+    n = len(rm.points)
+    S, G = n * H, n * H + 1
+    theta = pb.theta
+    g_score = np.full(n * H + 2, np.inf)
+    parent = np.full(n * H + 2, -1, dtype=np.intp)
+    closed = np.zeros(n * H + 2, dtype=bool)
+    qg = pb.goal[:2]
+    hv = np.linalg.norm(rm.points - qg, axis=1) if n else np.zeros(0)
+    goal_edge = {int(v): (float(l), float(a)) for v, l, a in zip(*pb.to_goal)}
+    heap = [(float(np.linalg.norm(pb.start[:2] - qg)), 0.0, S)]
+    g_score[S] = 0.0
+    expanded = 0
+    th0, thG = pb.start[2], pb.goal[2]
+
+    def relax(base_g, js, lengths, angles, th_from):
+        """Edges from a node with heading ``th_from`` at cost ``base_g`` to ``js x headings``."""
+        if len(js) == 0:
+            return
+        c = base_g + lengths + w1 * _wrap_abs(angles - th_from)
+        cost = c[:, None] + w2 * _wrap_abs(angles[:, None] - theta[None, :])
+        ids = (js[:, None] * H + np.arange(H)[None, :]).ravel()
+        cost = cost.ravel()
+        better = cost < g_score[ids]
+        if not better.any():
+            return
+        ids, cost = ids[better], cost[better]
+        g_score[ids] = cost
+        parent[ids] = node
+        f = cost + hv[ids // H]
+        for fi, ci, ii in zip(f.tolist(), cost.tolist(), ids.tolist()):
+            heapq.heappush(heap, (fi, ci, ii))
+
+    def relax_goal(base_g, length, angle, th_from):
+        phi = angle if length > 0 else thG
+        c = base_g + length + w1 * float(_wrap_abs(phi - th_from)) + w2 * float(_wrap_abs(phi - thG))
+        if c < g_score[G]:
+            g_score[G] = c
+            parent[G] = node
+            heapq.heappush(heap, (c, c, G))
+
+    while heap:
+        f, gcost, node = heapq.heappop(heap)
+        if closed[node] or gcost > g_score[node]:
+            continue
+        closed[node] = True
+        expanded += 1
+        if node == G:
+            break
+        if node == S:
+            relax(0.0, *pb.from_start, th0)
+            if pb.direct:
+                d = float(np.linalg.norm(qg - pb.start[:2]))
+                ang = math.atan2(qg[1] - pb.start[1], qg[0] - pb.start[0])
+                relax_goal(0.0, d, ang, th0)
+            continue
+        i, h = divmod(node, H)
+        js, lengths, angles = rm.neighbours(i)
+        relax(gcost, js, lengths, angles, theta[h])
+        ge = goal_edge.get(i)
+        if ge is not None:
+            relax_goal(gcost, ge[0], ge[1], theta[h])
+    if not closed[G]:
+        raise NoTreePathError(pb.start, pb.goal, TreeFailure.DISCONNECTED,
+                              f"{n} roadmap vertices, {len(rm.pairs)} edges, {expanded} nodes expanded")
+    # path reconstruction
+    chain = [G]
+    while chain[-1] != S:
+        chain.append(int(parent[chain[-1]]))
+    chain.reverse()
+    poses, verts = [], []
+    for node in chain:
+        if node == S:
+            poses.append(tuple(pb.start.tolist()))
+            verts.append(-1)
+        elif node == G:
+            poses.append(tuple(pb.goal.tolist()))
+            verts.append(-1)
+        else:
+            i, h = divmod(node, H)
+            poses.append((float(rm.points[i, 0]), float(rm.points[i, 1]), float(theta[h])))
+            verts.append(i)
+    arr = np.array(poses)
+    Q = rotation_terms(arr[:-1, :2], arr[:-1, 2], arr[1:, :2], arr[1:, 2])
+    d = np.linalg.norm(np.diff(arr[:, :2], axis=0), axis=1)
+    costs = d + Q @ weights.as_array()
+    return HarmonicTree(tuple(poses[0]), tuple(poses[-1]), tuple(poses), tuple(verts), d, Q, costs,
+                        float(costs.sum()), weights, H, expanded)
+
+
+def tree_graph(roadmap: Roadmap, start, goal, weights: RotationWeights | None = None, n_headings: int = 8):
+    """The harmonic tree of eq. 7 as an explicit :class:`networkx.DiGraph` (for inspection and
+    brute-force checks; :func:`plan_tree` never builds it).
+
+    Nodes are ``"start"``, ``"goal"`` and ``(vertex, heading_index)``; edge attribute ``weight`` is
+    the eq. 26 cost. Raises :class:`NoTreePathError` for a blocked start or goal, like
+    :func:`plan_tree`.
+    """
+    import networkx as nx
+
+    weights = RotationWeights() if weights is None else weights
+    pb = _problem(roadmap, start, goal, n_headings)
+    rm, H, theta = pb.rm, n_headings, pb.theta
+    Gr = nx.DiGraph()
+    Gr.add_node("start")
+    Gr.add_node("goal")
+    for i in range(len(rm.points)):
+        for h in range(H):
+            Gr.add_node((i, h))
+
+    def add(u, q_from, th_from, v, q_to, th_to):
+        Gr.add_edge(u, v, weight=edge_cost(q_from, th_from, q_to, th_to, weights))
+
+    for v in pb.from_start[0]:
+        for h in range(H):
+            add("start", pb.start[:2], pb.start[2], (int(v), h), rm.points[v], theta[h])
+    if pb.direct:
+        add("start", pb.start[:2], pb.start[2], "goal", pb.goal[:2], pb.goal[2])
+    for i, j in rm.pairs:
+        for a, b in ((i, j), (j, i)):
+            for h in range(H):
+                for k in range(H):
+                    add((int(a), h), rm.points[a], theta[h], (int(b), k), rm.points[b], theta[k])
+    for v in pb.to_goal[0]:
+        for h in range(H):
+            add((int(v), h), rm.points[v], theta[h], "goal", pb.goal[:2], pb.goal[2])
+    return Gr
+
+
+# ---------------------------------------------------------------------- revision (4.2.3)
+@dataclass(frozen=True, slots=True, eq=False)
+class RevisionResult:
+    """Outcome of :func:`revise_trees`.
+
+    Attributes
+    ----------
+    roadmap : Roadmap
+        The trimmed and regenerated roadmap.
+    trees : dict
+        Key -> revised :class:`HarmonicTree` for every pair that still has a path.
+    blocked : dict
+        Key -> :class:`NoTreePathError` for every pair that lost its path.
+    changed : frozenset
+        Keys whose waypoint sequence changed (or that became blocked).
+    """
+
+    roadmap: Roadmap
+    trees: dict
+    blocked: dict
+    changed: frozenset = field(default_factory=frozenset)
+
+
+def revise_trees(roadmap: Roadmap, trees: Mapping, new_obstacles=(), *, weights: RotationWeights | None = None,
+                 extra=None) -> RevisionResult:
+    """Local revision of every harmonic tree after discovering ``new_obstacles`` and/or updating
+    the weights (paper 001 section 4.2.3).
+
+    (I) trimming and (II) regeneration happen once, on the shared roadmap
+    (:meth:`Roadmap.with_obstacles`, with ``extra`` potential-biased candidates); (III) every
+    tree's path is searched again by A* with ``weights`` (default: each tree's own). Without
+    ``extra`` every revised tree equals :func:`plan_tree` on the roadmap built from scratch.
+
+    Parameters
+    ----------
+    trees : mapping key -> HarmonicTree
+        The current trees (any hashable keys, e.g. pairs of navigation-map nodes).
+    """
+    rm = roadmap.with_obstacles(new_obstacles, extra=extra)
+    out, blocked, changed = {}, {}, set()
+    for key, tree in trees.items():
+        w = tree.weights if weights is None else weights
+        try:
+            t = plan_tree(rm, tree.start, tree.goal, w, tree.n_headings)
+        except NoTreePathError as err:
+            blocked[key] = err
+            changed.add(key)
+            continue
+        out[key] = t
+        if t.waypoints != tree.waypoints:
+            changed.add(key)
+    return RevisionResult(rm, out, blocked, frozenset(changed))

@@ -1,0 +1,475 @@
+"""Visibility roadmap of a squircle world: the vertex set ``V`` and free-vicinity edges of the
+harmonic trees (paper 001 section 4.1.1, eq. 7) and its trimming / regeneration when obstacles
+are discovered (section 4.2.3, steps I and II).
+
+The paper generates the vertices of every tree ``T_{g -> g'} = (V, B, gamma, (v_0, v_G))`` "by
+the visibility graph from Huang and Chung (2004) ... and a safety buffer of 0.15 m" and connects
+"any vertex ... to all vertices within its free vicinity". Every tree of one world shares these
+positions and edges; only the terminals ``v_0``, ``v_G`` and the headings differ, so they are
+built once per obstacle set here and :mod:`tamp.harmonic_tree` adds terminals, headings, edge
+costs (eq. 26) and A* (eq. 8).
+
+Safety notion
+-------------
+The robot is a disc of radius ``r``; the buffer is ``b``. A point or segment is *safe* when it
+stays at Euclidean distance ``>= r + b`` from every obstacle and from the workspace boundary,
+i.e. at clearance ``>= b`` in the robot's configuration space (obstacles inflated by ``r``).
+This is certified exactly, without sampling: every obstacle ``O_j`` is replaced by the squircle
+``G_j = O_j.grow(r + b)``, which contains ``O_j`` grown by ``r + b``
+(:meth:`navigation.Squircle.grow`), and the workspace by ``W' = W.grow(-(r + b))``. Squircles are
+convex (``beta + 1`` is the square of a norm), so
+
+* a segment avoids ``G_j`` iff ``min_t beta_j(a + t (b - a)) > 0``; ``beta_j`` is convex along
+  the segment, and the minimum is bracketed by bisection on the sign of its exact derivative
+  with the certified lower bound ``max(f(lo) + f'(lo) (hi - lo), f(hi) - f'(hi) (hi - lo))``
+  (tangent lines of a convex function); undecided segments count as blocked;
+* a segment lies in ``W'`` iff both its ends do.
+
+The test is per (segment, obstacle) pair, so "safe against the old and the new obstacles" is
+the same verdict as "safe against all of them": trimming after a discovery gives exactly the
+roadmap built from scratch (tested).
+
+Vertices
+--------
+For each ``G_j``, ``vertices_per_obstacle`` boundary points at normalised angles
+``psi_k = 2 pi k / n`` (with ``n`` a multiple of 8 these include the four corners of a rounded
+rectangle, the vertices of its visibility graph, and the four side midpoints), each pushed
+``offset`` metres along the outward normal (so it lies at distance ``offset`` from ``G_j``:
+edges can leave it). A vertex is kept when it is outside every ``G_k`` and inside ``W'``.
+Optional extra candidates (potential-biased regeneration, :func:`descent_candidates`) are kept
+under the same rule.
+
+Symbols
+-------
+=========================  ===========================================================
+``r``                      robot radius (inflation), m
+``b``                      safety buffer (paper: 0.15 m), m
+``G_j``                    obstacle ``j`` grown by ``r + b``
+``W'``                     workspace shrunk by ``r + b``
+``V``                      vertex positions ``(n_V, 2)``
+``pairs``                  visible vertex pairs ``(n_E, 2)``, ``i < j``
+=========================  ===========================================================
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from navigation.errors import WorldError
+from navigation.geometry import Squircle, beta_rows, pack
+
+from .errors import TampError
+
+__all__ = ["RoadmapConfig", "Roadmap", "segments_clear", "descent_candidates", "grown"]
+
+_BISECTION_STEPS = 60
+_CHUNK = 200_000  # (segment, obstacle) pairs evaluated at once
+
+
+@dataclass(frozen=True, slots=True)
+class RoadmapConfig:
+    """Parameters of the visibility roadmap.
+
+    Parameters
+    ----------
+    buffer : float
+        Safety buffer ``b`` beyond the robot-inflated obstacles (m); paper 001 uses 0.15.
+    offset : float
+        Distance of a vertex outside its buffered obstacle ``G_j`` (m), > 0 so that edges can
+        leave it.
+    vertices_per_obstacle : int
+        Boundary vertices per obstacle, a positive multiple of 4 (8 includes the corners).
+    vicinity : float
+        Longest edge (m): the "free vicinity" of a vertex; ``inf`` connects every visible pair.
+    """
+
+    buffer: float = 0.15
+    offset: float = 0.05
+    vertices_per_obstacle: int = 8
+    vicinity: float = math.inf
+
+    def __post_init__(self):
+        for name in ("buffer", "offset", "vicinity"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or math.isnan(v):
+                raise TampError(f"RoadmapConfig.{name} must be a number, got {v!r}")
+            object.__setattr__(self, name, float(v))
+        if not (math.isfinite(self.buffer) and self.buffer >= 0):
+            raise TampError(f"RoadmapConfig.buffer must be finite and >= 0, got {self.buffer}")
+        if not (math.isfinite(self.offset) and self.offset > 0):
+            raise TampError(f"RoadmapConfig.offset must be finite and > 0, got {self.offset}")
+        if not self.vicinity > 0:
+            raise TampError(f"RoadmapConfig.vicinity must be > 0, got {self.vicinity}")
+        n = self.vertices_per_obstacle
+        if isinstance(n, bool) or not isinstance(n, int) or n < 4 or n % 4:
+            raise TampError(f"RoadmapConfig.vertices_per_obstacle must be a positive multiple of 4, got {n!r}")
+
+
+@functools.lru_cache(maxsize=4096)
+def grown(sq: Squircle, amount: float) -> Squircle:
+    """``sq.grow(amount)``, cached (growing is iterative and costs ~10 ms per squircle).
+
+    Raises
+    ------
+    WorldError
+        The squircle cannot be shrunk that much (``amount < 0``).
+    """
+    try:
+        return sq.grow(amount)
+    except ValueError as err:
+        raise WorldError(f"cannot grow {sq} by {amount:g}: {err}", "workspace") from None
+
+
+# ---------------------------------------------------------------------- exact segment tests
+def _line_beta(P: np.ndarray, a: np.ndarray, d: np.ndarray, t: np.ndarray):
+    """``beta`` of rows ``P (K, 7)`` at ``a + t d`` and its exact derivative in ``t``."""
+    cx, cy, c, s = P[:, 0], P[:, 1], P[:, 2], P[:, 3]
+    ex, ey = a[:, 0] - cx, a[:, 1] - cy
+    x0 = (c * ex + s * ey) / P[:, 4]
+    y0 = (-s * ex + c * ey) / P[:, 5]
+    dx = (c * d[:, 0] + s * d[:, 1]) / P[:, 4]
+    dy = (-s * d[:, 0] + c * d[:, 1]) / P[:, 5]
+    x, y = x0 + t * dx, y0 + t * dy
+    x2, y2 = x * x, y * y
+    k = 2.0 - 4.0 * P[:, 6] ** 2
+    root = np.sqrt(np.maximum(x2 * x2 + y2 * y2 + k * x2 * y2, 0.0))
+    beta = 0.5 * (x2 + y2 + root) - 1.0
+    droot_num = 4.0 * x2 * x * dx + 4.0 * y2 * y * dy + k * (2.0 * x * dx * y2 + 2.0 * x2 * y * dy)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        droot = np.where(root > 0, droot_num / (2.0 * np.where(root > 0, root, 1.0)), 0.0)
+    dbeta = x * dx + y * dy + 0.5 * droot
+    return beta, dbeta
+
+
+def _misses(P: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """True where the closed segment ``[a_k, b_k]`` misses the squircle ``P_k`` (row-wise).
+
+    Exact up to rounding: ``beta`` is convex along the segment; its minimum is bracketed by
+    bisection and certified positive by tangent lines (see the module docstring). Pairs still
+    undecided after the bisection count as blocked.
+    """
+    K = len(P)
+    out = np.zeros(K, dtype=bool)
+    if K == 0:
+        return out
+    d = b - a
+    zero, one = np.zeros(K), np.ones(K)
+    f0, g0 = _line_beta(P, a, d, zero)
+    f1, g1 = _line_beta(P, a, d, one)
+    ends_out = (f0 > 0) & (f1 > 0)
+    out[ends_out & ((g0 >= 0) | (g1 <= 0))] = True  # minimum at an end, which is outside
+    act = np.nonzero(ends_out & (g0 < 0) & (g1 > 0))[0]
+    lo, hi = zero[act], one[act]
+    flo, glo, fhi, ghi = f0[act], g0[act], f1[act], g1[act]
+    for _ in range(_BISECTION_STEPS):
+        if act.size == 0:
+            break
+        width = hi - lo
+        bound = np.maximum(flo + glo * width, fhi - ghi * width)
+        ok = bound > 0
+        out[act[ok]] = True
+        mid = 0.5 * (lo + hi)
+        fm, gm = _line_beta(P[act], a[act], d[act], mid)
+        keep = ~ok & (fm > 0)
+        left = gm < 0  # minimum right of mid
+        lo = np.where(left, mid, lo)
+        flo = np.where(left, fm, flo)
+        glo = np.where(left, gm, glo)
+        hi = np.where(left, hi, mid)
+        fhi = np.where(left, fhi, fm)
+        ghi = np.where(left, ghi, gm)
+        act, lo, hi, flo, glo, fhi, ghi = (v[keep] for v in (act, lo, hi, flo, glo, fhi, ghi))
+    return out
+
+
+def _point_segment_distance(c: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distances ``(K, M)`` from centres ``c (M, 2)`` to segments ``[a, b] (K, 2)``."""
+    d = b - a
+    dd = np.einsum("ij,ij->i", d, d)
+    rel = c[None, :, :] - a[:, None, :]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(dd[:, None] > 0, np.einsum("kmj,kj->km", rel, d) / np.where(dd > 0, dd, 1.0)[:, None], 0.0)
+    t = np.clip(t, 0.0, 1.0)
+    foot = a[:, None, :] + t[..., None] * d[:, None, :]
+    return np.linalg.norm(c[None, :, :] - foot, axis=-1)
+
+
+def segments_clear(P: np.ndarray, a, b) -> np.ndarray:
+    """True where segment ``[a_k, b_k]`` misses every squircle of the packed rows ``P (M, 7)``.
+
+    Parameters
+    ----------
+    P : (M, 7) array
+        Packed squircles (:func:`navigation.geometry.pack`), e.g. the buffered obstacles ``G_j``.
+    a, b : (K, 2) arrays
+        Segment ends.
+
+    Returns
+    -------
+    (K,) bool
+        Exact (up to rounding, conservative when undecided) per the module docstring. The
+        workspace is not checked here: by convexity a segment is inside it iff its ends are.
+    """
+    a = np.asarray(a, dtype=float).reshape(-1, 2)
+    b = np.asarray(b, dtype=float).reshape(-1, 2)
+    K, M = len(a), len(P)
+    clear = np.ones(K, dtype=bool)
+    if K == 0 or M == 0:
+        return clear
+    radius = np.hypot(P[:, 4], P[:, 5])  # half-diagonal of the bounding rectangle
+    step = max(1, _CHUNK // M)
+    for lo in range(0, K, step):
+        hi = min(K, lo + step)
+        near = _point_segment_distance(P[:, :2], a[lo:hi], b[lo:hi]) <= radius[None, :] * (1.0 + 1e-9)
+        k, m = np.nonzero(near)
+        if k.size == 0:
+            continue
+        miss = _misses(P[m], a[lo:hi][k], b[lo:hi][k])
+        blocked = np.zeros(hi - lo, dtype=bool)
+        blocked[k[~miss]] = True
+        clear[lo:hi] &= ~blocked
+    return clear
+
+
+# ---------------------------------------------------------------------- roadmap
+def _boundary_vertices(G: Squircle, n: int, offset: float) -> np.ndarray:
+    """``n`` points at normalised angles ``2 pi k / n`` on ``G``, pushed ``offset`` outwards."""
+    pts = G.point_at(2.0 * np.pi * np.arange(n) / n)
+    normal = G.gradient(pts)
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    return pts + offset * normal
+
+
+def _outside_all(P: np.ndarray, ws: Squircle, pts: np.ndarray) -> np.ndarray:
+    """Points strictly outside every row of ``P`` and strictly inside ``ws``."""
+    if len(pts) == 0:
+        return np.zeros(0, dtype=bool)
+    ok = ws.beta(pts) < 0
+    if len(P):
+        ok &= np.all(beta_rows(P[None, :, :], pts[:, None, 0], pts[:, None, 1]) > 0, axis=1)
+    return ok
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Roadmap:
+    """Visibility roadmap shared by every harmonic tree of one obstacle set (immutable).
+
+    Build with :meth:`build` or :meth:`from_world`; revise with :meth:`with_obstacles`.
+
+    Attributes
+    ----------
+    workspace : Squircle
+        The true workspace.
+    obstacles : tuple of Squircle
+        The true (not inflated) obstacles the roadmap avoids.
+    radius : float
+        Robot radius ``r``.
+    config : RoadmapConfig
+    buffered : tuple of Squircle
+        ``G_j = obstacles[j].grow(r + b)``.
+    free_workspace : Squircle
+        ``W' = workspace.grow(-(r + b))``.
+    P : (M, 7) array
+        ``pack(buffered)``.
+    points : (n_V, 2) array
+        Vertex positions.
+    owner : (n_V,) int array
+        Obstacle index a vertex was generated from, ``-1`` for extra (biased) candidates.
+    pairs : (n_E, 2) int array
+        Visible pairs ``i < j`` (segment safe and no longer than ``vicinity``).
+    """
+
+    workspace: Squircle
+    obstacles: tuple
+    radius: float
+    config: RoadmapConfig
+    buffered: tuple
+    free_workspace: Squircle
+    P: np.ndarray
+    points: np.ndarray
+    owner: np.ndarray
+    pairs: np.ndarray
+    _adj: tuple = field(repr=False)
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def build(cls, workspace: Squircle, obstacles, radius: float = 0.0, config: RoadmapConfig | None = None,
+              extra=None) -> "Roadmap":
+        """Roadmap of ``obstacles`` in ``workspace`` for a robot of ``radius``.
+
+        Parameters
+        ----------
+        extra : (K, 2) array, optional
+            Additional candidate vertices (e.g. :func:`descent_candidates`), kept when safe.
+
+        Raises
+        ------
+        WorldError
+            ``radius`` negative or the workspace too small for ``radius + buffer``.
+        """
+        config = RoadmapConfig() if config is None else config
+        radius = float(radius)
+        if not (math.isfinite(radius) and radius >= 0):
+            raise WorldError(f"robot radius must be finite and >= 0, got {radius}", "robot.radius")
+        obstacles = tuple(obstacles)
+        amount = radius + config.buffer
+        ws = grown(workspace, -amount) if amount > 0 else workspace
+        G = tuple(grown(o, amount) if amount > 0 else o for o in obstacles)
+        P = pack(G) if G else np.zeros((0, 7))
+        pts, owner = cls._candidates(G, range(len(G)), config)
+        pts, owner = cls._with_extra(pts, owner, extra)
+        keep = _outside_all(P, ws, pts)
+        pts, owner = pts[keep], owner[keep]
+        n = len(pts)
+        i, j = np.triu_indices(n, 1)
+        pairs = cls._visible(P, pts, i, j, config.vicinity)
+        return cls._make(workspace, obstacles, radius, config, G, ws, P, pts, owner, pairs)
+
+    @classmethod
+    def from_world(cls, world, config: RoadmapConfig | None = None, *, known_only: bool = False,
+                   extra=None) -> "Roadmap":
+        """Roadmap of a :class:`navigation.World`: all its obstacles, or only the known ones."""
+        obstacles = world.known if known_only else world.obstacles
+        return cls.build(world.workspace, obstacles, world.robot.radius, config, extra)
+
+    @staticmethod
+    def _candidates(G, indices, config):
+        pts = [np.zeros((0, 2))]
+        owner = [np.zeros(0, dtype=np.intp)]
+        n = config.vertices_per_obstacle
+        for k in indices:
+            pts.append(_boundary_vertices(G[k], n, config.offset))
+            owner.append(np.full(n, k, dtype=np.intp))
+        return np.concatenate(pts), np.concatenate(owner)
+
+    @staticmethod
+    def _with_extra(pts, owner, extra):
+        if extra is None:
+            return pts, owner
+        extra = np.asarray(extra, dtype=float).reshape(-1, 2)
+        if not np.all(np.isfinite(extra)):
+            raise TampError("extra candidate vertices must be finite")
+        return np.concatenate([pts, extra]), np.concatenate([owner, np.full(len(extra), -1, dtype=np.intp)])
+
+    @staticmethod
+    def _visible(P, pts, i, j, vicinity) -> np.ndarray:
+        i, j = np.asarray(i, dtype=np.intp), np.asarray(j, dtype=np.intp)
+        if vicinity < math.inf:
+            near = np.linalg.norm(pts[i] - pts[j], axis=1) <= vicinity
+            i, j = i[near], j[near]
+        ok = segments_clear(P, pts[i], pts[j])
+        return np.stack([i[ok], j[ok]], axis=1) if ok.any() else np.zeros((0, 2), dtype=np.intp)
+
+    @classmethod
+    def _make(cls, workspace, obstacles, radius, config, G, ws, P, pts, owner, pairs) -> "Roadmap":
+        n = len(pts)
+        pairs = np.asarray(pairs, dtype=np.intp).reshape(-1, 2)
+        if len(pairs):
+            order = np.lexsort((pairs[:, 1], pairs[:, 0]))
+            pairs = pairs[order]
+        src = np.concatenate([pairs[:, 0], pairs[:, 1]])
+        dst = np.concatenate([pairs[:, 1], pairs[:, 0]])
+        order = np.argsort(src, kind="stable")
+        src, dst = src[order], dst[order]
+        indptr = np.searchsorted(src, np.arange(n + 1))
+        vec = pts[dst] - pts[src]
+        length = np.hypot(vec[:, 0], vec[:, 1])
+        angle = np.arctan2(vec[:, 1], vec[:, 0])
+        return cls(workspace, tuple(obstacles), float(radius), config, tuple(G), ws, P, pts, owner, pairs,
+                   (indptr, dst, length, angle))
+
+    # ------------------------------------------------------------------ queries
+    def neighbours(self, i: int):
+        """``(j, length, angle)`` arrays of the vertices visible from vertex ``i``
+        (``angle`` is the direction of ``points[j] - points[i]``)."""
+        indptr, dst, length, angle = self._adj
+        s = slice(indptr[i], indptr[i + 1])
+        return dst[s], length[s], angle[s]
+
+    def safe_points(self, q) -> np.ndarray:
+        """True where the points ``q (K, 2)`` are outside every ``G_j`` and inside ``W'``."""
+        return _outside_all(self.P, self.free_workspace, np.asarray(q, dtype=float).reshape(-1, 2))
+
+    def visible(self, a, b) -> np.ndarray:
+        """True where the segments ``[a_k, b_k]`` are safe (ends inside ``W'``, no ``G_j`` hit)."""
+        a = np.asarray(a, dtype=float).reshape(-1, 2)
+        b = np.asarray(b, dtype=float).reshape(-1, 2)
+        ok = (self.free_workspace.beta(a) < 0) & (self.free_workspace.beta(b) < 0)
+        return ok & segments_clear(self.P, a, b)
+
+    # ------------------------------------------------------------------ revision (4.2.3)
+    def with_obstacles(self, new, extra=None) -> "Roadmap":
+        """The roadmap after discovering the obstacles ``new`` (paper 001 section 4.2.3 I-II).
+
+        (I) Trimming: vertices inside a new buffered obstacle and edges whose segment hits one
+        are removed; every other edge is kept without re-checking (the test is per obstacle).
+        (II) Regeneration: the boundary vertices of the new obstacles and the ``extra``
+        candidates (potential-biased, e.g. :func:`descent_candidates`) are added when safe and
+        connected to every visible vertex.
+
+        Without ``extra`` the result equals ``Roadmap.build`` on ``obstacles + new`` (same
+        vertices in the same order, same edges).
+        """
+        new = tuple(new)
+        for k, o in enumerate(new):
+            if not isinstance(o, Squircle):
+                raise TampError(f"new obstacles[{k}]: expected a navigation.Squircle, got {type(o).__name__}")
+        if not new and extra is None:
+            return self
+        amount = self.radius + self.config.buffer
+        G_new = tuple(grown(o, amount) if amount > 0 else o for o in new)
+        P_new = pack(G_new) if G_new else np.zeros((0, 7))
+        m_old = len(self.buffered)
+        G = self.buffered + G_new
+        P = np.concatenate([self.P, P_new])
+        # (I) trimming: old vertices and old edges against the new obstacles only
+        keep = _outside_all(P_new, self.free_workspace, self.points)
+        old_index = np.full(len(self.points), -1, dtype=np.intp)
+        old_index[keep] = np.arange(int(keep.sum()))
+        pairs = self.pairs[keep[self.pairs[:, 0]] & keep[self.pairs[:, 1]]] if len(self.pairs) else self.pairs
+        if len(pairs) and len(P_new):
+            pairs = pairs[segments_clear(P_new, self.points[pairs[:, 0]], self.points[pairs[:, 1]])]
+        pairs = old_index[pairs]
+        pts_old, owner_old = self.points[keep], self.owner[keep]
+        # (II) regeneration: the new obstacles' vertices, then the biased extras
+        cand, cowner = self._candidates(G, range(m_old, len(G)), self.config)
+        cand, cowner = self._with_extra(cand, cowner, extra)
+        ok = _outside_all(P, self.free_workspace, cand)
+        cand, cowner = cand[ok], cowner[ok]
+        n_old, n_new = len(pts_old), len(cand)
+        pts = np.concatenate([pts_old, cand])
+        owner = np.concatenate([owner_old, cowner])
+        # new-old and new-new pairs against every obstacle
+        ii, jj = np.meshgrid(np.arange(n_old + n_new), np.arange(n_old, n_old + n_new), indexing="ij")
+        sel = ii < jj
+        new_pairs = self._visible(P, pts, ii[sel], jj[sel], self.config.vicinity)
+        all_pairs = np.concatenate([pairs.reshape(-1, 2), new_pairs])
+        return self._make(self.workspace, self.obstacles + new, self.radius, self.config, G,
+                          self.free_workspace, P, pts, owner, all_pairs)
+
+
+def descent_candidates(nf, start, spacing: float = 0.5, **descend_options) -> np.ndarray:
+    """Potential-biased regeneration candidates (paper 001 section 4.2.3 II): points every
+    ``spacing`` metres (of arc length) along the gradient descent of the navigation function
+    ``nf`` from ``start`` towards its goal, start and goal excluded.
+
+    The descent follows the potential's steepest change, so these vertices fill the part of the
+    workspace the potential routes the robot through. ``descend_options`` go to
+    :func:`navigation.descend`. Returns ``(K, 2)`` (possibly empty).
+    """
+    from navigation.descent import descend
+
+    if not (isinstance(spacing, (int, float)) and spacing > 0):
+        raise TampError(f"spacing must be > 0, got {spacing!r}")
+    path = descend(nf, np.asarray(start, dtype=float).reshape(2), **descend_options).path
+    if len(path) < 2:
+        return np.zeros((0, 2))
+    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
+    targets = np.arange(spacing, arc[-1] - 0.5 * spacing, spacing)
+    if targets.size == 0:
+        return np.zeros((0, 2))
+    return np.stack([np.interp(targets, arc, path[:, 0]), np.interp(targets, arc, path[:, 1])], axis=1)
