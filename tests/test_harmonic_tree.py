@@ -1,0 +1,351 @@
+"""Harmonic trees (paper 001 eq. 7-8, 26, section 4.2.3): safety of every path, eq. 26 costs,
+A* optimality against a brute-force Dijkstra, revision equal to a rebuild, the least-squares
+weight update, and clear reports of infeasible pairs."""
+
+from __future__ import annotations
+
+import functools
+import itertools
+import math
+
+import networkx as nx
+import numpy as np
+import pytest
+
+from navigation import Squircle
+from navigation.errors import TampError
+from tamp.harmonic_tree import (NoTreePathError, RotationWeights, TreeFailure, edge_cost, plan_tree,
+                                revise_trees, rotation_terms, tree_graph)
+from tamp.roadmap import Roadmap, RoadmapConfig, descent_candidates, segments_clear
+from navigation.geometry import pack
+
+from .conftest import shared_world
+from .worldgen import random_forest_world
+
+ROBOT_GAP = 0.3  # random worlds with room for the robot (gap > 2 r), as benchmarks/control.py
+
+SHARED = ("simple", "office", "cluttered20")
+SPACING = 0.01  # dense-check sample spacing (m); clearance along a segment >= sampled - SPACING / 2
+
+
+@functools.lru_cache(maxsize=None)
+def random_world(seed: int):
+    return random_forest_world(seed, gap=ROBOT_GAP)
+
+
+def _poses(world, rng):
+    """Region centres with random headings."""
+    return {name: (*reg.center, float(rng.uniform(-math.pi, math.pi))) for name, reg in world.regions.items()}
+
+
+def _clearance(world_obstacles, workspace, pts):
+    """Exact distance from ``pts`` to the nearest obstacle or the workspace boundary."""
+    d = -np.atleast_1d(workspace.distance(pts))
+    for o in world_obstacles:
+        near = np.linalg.norm(pts - o.c, axis=1) < o.bounding_radius + 1.0
+        if near.any():
+            d[near] = np.minimum(d[near], np.atleast_1d(o.distance(pts[near])))
+    return d
+
+
+def _dense(a, b):
+    n = max(2, int(math.ceil(np.linalg.norm(np.subtract(b, a)) / SPACING)) + 1)
+    t = np.linspace(0.0, 1.0, n)[:, None]
+    return np.asarray(a)[None, :] + t * (np.asarray(b) - np.asarray(a))[None, :]
+
+
+def _check_tree(tree, rm, start, goal):
+    """Anchored at the poses, eq. 26 costs, every segment safe."""
+    assert tree.waypoints[0] == pytest.approx(start)
+    assert tree.waypoints[-1][:2] == pytest.approx(goal[:2])
+    assert math.remainder(tree.waypoints[-1][2] - goal[2], 2 * math.pi) == pytest.approx(0.0, abs=1e-12)
+    costs = [edge_cost(u[:2], u[2], v[:2], v[2], tree.weights) for u, v in zip(tree.waypoints, tree.waypoints[1:])]
+    assert tree.edge_costs == pytest.approx(costs, rel=1e-12)
+    assert tree.cost == pytest.approx(sum(costs), rel=1e-12)
+    need = rm.radius + rm.config.buffer
+    terminal_ok = rm.safe_points(np.array([start[:2], goal[:2]]))
+    for n, (u, v) in enumerate(zip(tree.waypoints, tree.waypoints[1:])):
+        pts = _dense(u[:2], v[:2])
+        clear = _clearance(rm.obstacles, rm.workspace, pts)
+        at_start, at_goal = n == 0, n == len(tree.waypoints) - 2
+        relaxed = (at_start and not terminal_ok[0]) or (at_goal and not terminal_ok[1])
+        # a terminal inside the buffer zone: its edges are only guaranteed collision-free
+        floor = rm.radius if relaxed else need
+        assert clear.min() >= floor - SPACING / 2 - 1e-9, (n, u, v, clear.min())
+
+
+# ---------------------------------------------------------------------- geometry
+def test_segment_test_matches_dense_sampling():
+    rng = np.random.default_rng(7)
+    sqs = [Squircle(tuple(rng.uniform(-1, 1, 2)), *rng.uniform(0.2, 1.2, 2), rng.uniform(0, np.pi),
+                    rng.choice([0.0, 0.5, 0.99])) for _ in range(16)]
+    P = pack(sqs)
+    a = rng.uniform(-2, 2, (400, 2))
+    b = rng.uniform(-2, 2, (400, 2))
+    t = np.linspace(0.0, 1.0, 4001)
+    from navigation.geometry import beta_rows
+
+    hit_any = margin_ok = 0
+    for k in range(len(sqs)):
+        pts = a[:, None, :] + t[None, :, None] * (b - a)[:, None, :]
+        beta = beta_rows(P[k], pts[..., 0], pts[..., 1]).min(axis=1)
+        got = segments_clear(P[k:k + 1], a, b)
+        assert not np.any(got & (beta <= 0)), "a segment through a squircle was certified clear"
+        clear = beta > 1e-6
+        assert np.all(got[clear]), "a clear segment was rejected"
+        hit_any += int((beta <= 0).sum())
+        margin_ok += int(clear.sum())
+    assert hit_any > 100 and margin_ok > 100
+
+
+# ---------------------------------------------------------------------- trees on worlds
+def _all_pairs(world, rm, seed, allow_blocked=False):
+    poses = _poses(world, np.random.default_rng(seed))
+    trees = {}
+    for a, b in itertools.permutations(poses, 2):
+        try:
+            tree = plan_tree(rm, poses[a], poses[b])
+        except NoTreePathError as err:
+            # the buffer closes passages narrower than 2 (r + b): an honest, named verdict
+            if not allow_blocked or err.reason is not TreeFailure.DISCONNECTED:
+                raise
+            continue
+        _check_tree(tree, rm, poses[a], poses[b])
+        trees[a, b] = tree
+    return trees
+
+
+@pytest.mark.parametrize("name", SHARED)
+def test_shared_world_paths_are_safe_and_costed(name):
+    world = shared_world(name)
+    rm = Roadmap.from_world(world)
+    trees = _all_pairs(world, rm, seed=1)
+    assert len(trees) == len(world.regions) * (len(world.regions) - 1)
+
+
+@pytest.mark.parametrize("seed", [0, 2, 3])
+def test_random_world_paths_are_safe_and_costed(seed):
+    world = random_world(seed)
+    rm = Roadmap.from_world(world)
+    _all_pairs(world, rm, seed, allow_blocked=True)
+
+
+def _dijkstra(rm, start, goal, weights, H):
+    G = tree_graph(rm, start, goal, weights, H)
+    return nx.dijkstra_path_length(G, "start", "goal")
+
+
+def test_astar_equals_brute_force_dijkstra_simple():
+    world = shared_world("simple")
+    rm = Roadmap.from_world(world)
+    poses = _poses(world, np.random.default_rng(3))
+    w = RotationWeights(0.3, 0.2)
+    for a, b in itertools.permutations(poses, 2):
+        tree = plan_tree(rm, poses[a], poses[b], w, 8)
+        assert tree.cost == pytest.approx(_dijkstra(rm, poses[a], poses[b], w, 8), rel=1e-12)
+
+
+def test_astar_equals_brute_force_dijkstra_random():
+    world = random_world(4)
+    rm = Roadmap.from_world(world)
+    rng = np.random.default_rng(4)
+    poses = _poses(world, rng)
+    compared = 0
+    for a, b in list(itertools.permutations(poses, 2))[:4]:
+        w = RotationWeights(*rng.uniform(0.05, 1.0, 2))
+        try:
+            cost = plan_tree(rm, poses[a], poses[b], w, 4).cost
+        except NoTreePathError:
+            with pytest.raises(nx.NetworkXNoPath):
+                _dijkstra(rm, poses[a], poses[b], w, 4)
+            continue
+        assert cost == pytest.approx(_dijkstra(rm, poses[a], poses[b], w, 4), rel=1e-12)
+        compared += 1
+    assert compared >= 2
+
+
+def test_vicinity_limits_edge_length():
+    world = shared_world("office")
+    rm = Roadmap.from_world(world, RoadmapConfig(vicinity=1.0))
+    lengths = np.linalg.norm(rm.points[rm.pairs[:, 0]] - rm.points[rm.pairs[:, 1]], axis=1)
+    assert lengths.max() <= 1.0
+    poses = _poses(world, np.random.default_rng(5))
+    tree = plan_tree(rm, poses["p1"], poses["d1"])
+    _check_tree(tree, rm, poses["p1"], poses["d1"])
+    assert np.all(tree.translations <= 1.0 + 1e-12)
+
+
+# ---------------------------------------------------------------------- revision (4.2.3)
+@pytest.mark.parametrize("seed", [0, 5])
+def test_revision_equals_rebuild(seed):
+    world = random_world(seed)
+    rng = np.random.default_rng(seed)
+    order = rng.permutation(len(world.obstacles))
+    known = [world.obstacles[i] for i in sorted(order[: len(order) // 3])]
+    rest = [world.obstacles[i] for i in sorted(order[len(order) // 3:])]
+    batches = [rest[: len(rest) // 2], rest[len(rest) // 2:]]
+    rm = Roadmap.build(world.workspace, known, world.robot.radius)
+    poses = _poses(world, rng)
+    trees = {(a, b): plan_tree(rm, poses[a], poses[b]) for a, b in itertools.permutations(poses, 2)}
+    seen = list(known)
+    for batch in batches:
+        rev = revise_trees(rm, trees, batch)
+        seen += batch
+        scratch = Roadmap.build(world.workspace, seen, world.robot.radius)
+        np.testing.assert_array_equal(rev.roadmap.points, scratch.points)
+        np.testing.assert_array_equal(rev.roadmap.pairs, scratch.pairs)
+        for key, tree in rev.trees.items():
+            ref = plan_tree(scratch, poses[key[0]], poses[key[1]])
+            assert tree.cost == pytest.approx(ref.cost, rel=1e-12)
+            _check_tree(tree, rev.roadmap, poses[key[0]], poses[key[1]])
+        for key, err in rev.blocked.items():
+            with pytest.raises(NoTreePathError):
+                plan_tree(scratch, poses[key[0]], poses[key[1]])
+        assert set(rev.trees) | set(rev.blocked) == set(trees)
+        rm, trees = rev.roadmap, {**rev.trees}
+
+
+def test_biased_regeneration_is_safe_and_no_worse():
+    """Extra candidates along the potential's descent only add vertices: never a dearer path."""
+    import navigation
+
+    world = shared_world("simple")
+    rm0 = Roadmap.build(world.workspace, world.obstacles[:2], world.robot.radius)
+    poses = _poses(world, np.random.default_rng(6))
+    a, b = list(poses)[:2]
+    tree = plan_tree(rm0, poses[a], poses[b])
+    nf = navigation.NavigationFunction(world, goal=poses[b][:2], inflation=world.robot.radius)
+    extra = descent_candidates(nf, poses[a][:2], spacing=0.3)
+    assert len(extra) > 0
+    rev = revise_trees(rm0, {"ab": tree}, world.obstacles[2:], extra=extra)
+    plain = Roadmap.build(world.workspace, world.obstacles, world.robot.radius)
+    assert (rev.roadmap.owner == -1).any()
+    assert len(rev.roadmap.points) > len(plain.points)
+    ref = plan_tree(plain, poses[a], poses[b])
+    assert rev.trees["ab"].cost <= ref.cost + 1e-12
+    _check_tree(rev.trees["ab"], rev.roadmap, poses[a], poses[b])
+
+
+def test_new_obstacle_on_the_path_forces_a_detour():
+    world = shared_world("simple")
+    rm = Roadmap.from_world(world)
+    poses = _poses(world, np.random.default_rng(8))
+    (a, pa), (b, pb) = list(poses.items())[:2]
+    tree = plan_tree(rm, pa, pb)
+    mid = tree.positions[len(tree.positions) // 2 - 1: len(tree.positions) // 2 + 1].mean(axis=0)
+    blocker = Squircle(tuple(mid), 0.3, 0.3, 0.0, 0.5)
+    rev = revise_trees(rm, {"ab": tree}, [blocker])
+    assert "ab" in rev.changed
+    new = rev.trees["ab"]
+    _check_tree(new, rev.roadmap, pa, pb)
+    assert new.cost > tree.cost
+
+
+# ---------------------------------------------------------------------- weights (4.2.3 III)
+def test_weight_fit_recovers_known_weights():
+    rng = np.random.default_rng(9)
+    for _ in range(20):
+        true = RotationWeights(*rng.uniform(0.01, 2.0, 2))
+        H = int(rng.integers(2, 40))
+        d = rng.uniform(0.1, 3.0, H)
+        Q = rng.uniform(0.0, math.pi, (H, 2))
+        fit = RotationWeights.fit(d, Q, d + Q @ true.as_array())
+        assert fit.as_array() == pytest.approx(true.as_array(), rel=1e-10)
+
+
+def test_weight_fit_from_traversed_edges_reprices_every_tree():
+    world = shared_world("office")
+    rm = Roadmap.from_world(world)
+    poses = _poses(world, np.random.default_rng(10))
+    trees = {k: plan_tree(rm, poses[k[0]], poses[k[1]]) for k in [("p1", "d1"), ("d2", "u1"), ("d3", "p2")]}
+    true = RotationWeights(0.17, 0.23)  # the paper's fitted value (Fig. 9)
+    d = np.concatenate([t.translations for t in trees.values()])
+    Q = np.concatenate([t.rotations for t in trees.values()])
+    w = RotationWeights.fit(d, Q, d + Q @ true.as_array())
+    assert w.as_array() == pytest.approx(true.as_array(), rel=1e-9)
+    rev = revise_trees(rm, trees, weights=w)
+    for k, t in rev.trees.items():
+        assert t.weights == w
+        assert t.cost <= trees[k].recost(w) + 1e-12  # the old path is still available
+        assert t.cost == pytest.approx(plan_tree(rm, poses[k[0]], poses[k[1]], w).cost, rel=1e-12)
+
+
+def test_weight_fit_rejects_degenerate_samples():
+    with pytest.raises(TampError, match="singular"):
+        RotationWeights.fit([1.0], [[0.1, 0.2]], [1.2])
+    with pytest.raises(TampError, match="singular"):
+        RotationWeights.fit([1.0, 2.0], [[0.1, 0.2], [0.2, 0.4]], [1.2, 2.3])
+    with pytest.raises(TampError, match="shape"):
+        RotationWeights.fit([1.0, 2.0], [0.1, 0.2], [1.2, 2.3])
+    with pytest.raises(TampError, match="> 0"):
+        RotationWeights(0.0, 0.1)
+    # contradicting data: the paper needs w > 0, so the fit is floored
+    w = RotationWeights.fit([1.0, 1.0], [[1.0, 0.0], [0.0, 1.0]], [0.5, 1.5])
+    assert w.w1 == pytest.approx(1e-6) and w.w2 == pytest.approx(0.5)
+
+
+def test_rotation_terms_follow_eq_26():
+    Q = rotation_terms([0.0, 0.0], 0.5, [1.0, 1.0], -3.0)
+    assert Q == pytest.approx([math.pi / 4 - 0.5, abs(math.remainder(math.pi / 4 + 3.0, 2 * math.pi))])
+    assert rotation_terms([0.0, 0.0], 0.0, [0.0, 0.0], 3.0) == pytest.approx([3.0, 0.0])  # in place
+    assert rotation_terms([0, 0], 0.0, [1, 0], 0.0, theta_gamma=math.pi)[0] == pytest.approx(math.pi)
+    assert edge_cost([0, 0], 0.0, [3, 4], math.atan2(4, 3), RotationWeights(1.0, 1.0)) == pytest.approx(
+        5.0 + math.atan2(4, 3))
+
+
+# ---------------------------------------------------------------------- infeasible pairs
+def _walled_world():
+    ws = Squircle((2.0, 1.5), 4.0, 3.0, 0.0, 0.99)
+    walls = [Squircle((3.0, 2.0), 1.2, 0.2, 0.0, 0.99), Squircle((3.0, 1.0), 1.2, 0.2, 0.0, 0.99),
+             Squircle((2.5, 1.5), 0.2, 1.2, 0.0, 0.99), Squircle((3.5, 1.5), 0.2, 1.2, 0.0, 0.99)]
+    return ws, walls
+
+
+def test_walled_off_goal_is_reported():
+    ws, walls = _walled_world()
+    rm = Roadmap.build(ws, walls, 0.05, RoadmapConfig(buffer=0.05))
+    with pytest.raises(NoTreePathError, match="walled off") as info:
+        plan_tree(rm, (0.5, 0.5, 0.0), (3.0, 1.5, 0.0))
+    assert info.value.reason is TreeFailure.DISCONNECTED
+    assert info.value.goal == (3.0, 1.5, 0.0)
+    # the same goal with one wall missing (discovered later, revision) is reachable, and the
+    # revision adding the wall reports it blocked
+    open_rm = Roadmap.build(ws, walls[:3], 0.05, RoadmapConfig(buffer=0.05))
+    tree = plan_tree(open_rm, (0.5, 0.5, 0.0), (3.0, 1.5, 0.0))
+    rev = revise_trees(open_rm, {"g": tree}, walls[3:])
+    assert rev.blocked["g"].reason is TreeFailure.DISCONNECTED and not rev.trees
+
+
+def test_blocked_terminals_are_reported():
+    ws, walls = _walled_world()
+    rm = Roadmap.build(ws, walls, 0.05)
+    with pytest.raises(NoTreePathError, match="goal position is not in free space") as info:
+        plan_tree(rm, (0.5, 0.5, 0.0), (3.0, 2.0, 0.0))
+    assert info.value.reason is TreeFailure.GOAL_BLOCKED
+    with pytest.raises(NoTreePathError, match="start position") as info:
+        plan_tree(rm, (9.0, 0.5, 0.0), (0.5, 2.5, 0.0))
+    assert info.value.reason is TreeFailure.START_BLOCKED
+    with pytest.raises(TampError, match="start must be a finite pose"):
+        plan_tree(rm, (0.5, float("nan"), 0.0), (0.5, 2.5, 0.0))
+    with pytest.raises(TampError, match="goal must be a"):
+        plan_tree(rm, (0.5, 0.5, 0.0), (0.5, 2.5))
+    with pytest.raises(TampError, match="vertices_per_obstacle"):
+        RoadmapConfig(vertices_per_obstacle=6)
+
+
+def test_terminal_inside_buffer_still_connects():
+    """A start closer to a wall than the buffer (the robot after a discovery) leaves it."""
+    ws, walls = _walled_world()
+    rm = Roadmap.build(ws, walls[:1], 0.1)
+    start = (3.0, 2.0 - 0.1 - 0.1 - 0.04, -math.pi / 2)  # 4 cm from the inflated wall
+    assert not rm.safe_points(np.array([start[:2]]))[0]
+    tree = plan_tree(rm, start, (0.5, 0.5, 0.0))
+    _check_tree(tree, rm, start, (0.5, 0.5, 0.0))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", range(10, 30))
+def test_random_worlds_slow(seed):
+    world = random_world(seed)
+    rm = Roadmap.from_world(world)
+    _all_pairs(world, rm, seed, allow_blocked=True)
