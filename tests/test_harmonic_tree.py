@@ -349,3 +349,11 @@ def test_random_worlds_slow(seed):
     world = random_world(seed)
     rm = Roadmap.from_world(world)
     _all_pairs(world, rm, seed, allow_blocked=True)
+
+
+def test_benchmark_quick_run_renders(tmp_path):
+    from benchmarks.harmonic_tree import main
+
+    assert main(["--quick", "--out", str(tmp_path)]) == 0
+    table = (tmp_path / "harmonic_tree.md").read_text()
+    assert "| simple (known) |" in table and "| simple | 4 |" in table
