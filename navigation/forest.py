@@ -33,6 +33,22 @@ given as indices of the *input* list, ``-1`` for the workspace boundary) when
 Obstacles that change nothing are dropped, not rejected, and listed in :attr:`Forest.dropped`:
 obstacles entirely outside the workspace, and obstacles contained in another obstacle.
 
+Memo (incremental rebuilds)
+---------------------------
+Every expensive step depends on one obstacle (boundary samples, relation to the workspace) or
+on one pair (overlap and containment, distance, common centre), and is memoised in a bounded
+LRU keyed by the squircles themselves. Rebuilding after a map change (paper 001 section 4.2.2:
+an obstacle added as a new star or a new leaf, updated or removed) therefore costs only the
+steps that involve changed obstacles, and gives the result of a cold build (up to rounding,
+1e-12 m; tested). :func:`clear_cache` empties the memo (benchmarks use it to time cold builds).
+
+Distances
+---------
+Obstacle-obstacle and obstacle-workspace distances: closest pair of coarse boundary samples
+(every local minimum within the sampling error is a candidate), refined on the samples and then
+by Newton on both boundary parameters with exact derivatives; point-to-boundary distances are
+:meth:`Squircle.distance`.
+
 Root choice: an interior tree is rooted at its graph centre (the member of least eccentricity,
 which minimises the number of purge levels), ties broken by larger area, then lower index. A
 tree that touches the workspace boundary is rooted at the workspace; the crossing obstacle is its
@@ -51,6 +67,8 @@ Symbols
 from __future__ import annotations
 
 import math
+import threading
+from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -59,9 +77,9 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .errors import ForestError
-from .geometry import COS, CX, CY, HH, HW, S, SIN, Squircle, pack
+from .geometry import COS, CX, CY, HH, HW, S, SIN, Squircle, boundary_jet_rows, clear_geometry_cache, pack
 
-__all__ = ["WORKSPACE", "NO_PARENT", "Forest", "build_forest", "separation", "common_center"]
+__all__ = ["WORKSPACE", "NO_PARENT", "Forest", "build_forest", "separation", "common_center", "clear_cache"]
 
 #: ``Forest.parent`` value of an obstacle whose parent is the workspace boundary.
 WORKSPACE = -1
@@ -76,6 +94,72 @@ _CENTER_ROTATIONS = (0.39,)  # rotated re-polls of the pattern search
 _THIN = 0.01  # common-centre depths below this are refined with exact distances
 _CONTAINED = 1e-12  # beta tolerance of the containment test
 _PRUNE = True  # skip k-d tree queries at common-centre candidates that provably cannot win
+_MEMO_SIZE = 65536  # pairwise results kept by the memo (a few hundred bytes each)
+_BODY_SIZE = 1024  # boundary-sample sets kept by the memo
+
+
+class _Memo:
+    """Bounded, thread-safe LRU memo of results that depend on one or two squircles only.
+
+    Every expensive step of :func:`build_forest` is a function of one obstacle (its boundary
+    samples), of a pair (overlap, containment, distance) or of a child/parent pair (common
+    centre), computed row by row: a row's result does not depend on the other rows of its
+    batch. Keying these results by the squircles themselves (frozen, hashable) makes a rebuild
+    after a map change cost only the rows that involve changed obstacles (paper 001 section
+    4.2.2: re-use the stored terms of the unchanged obstacles) and gives exactly the result of
+    a cold build.
+    """
+
+    def __init__(self, maxsize: int):
+        self.maxsize = maxsize
+        self._data: OrderedDict = OrderedDict()
+        self._lock = threading.Lock()
+        self.hits = 0
+        self.misses = 0
+
+    def get(self, key):
+        with self._lock:
+            try:
+                value = self._data[key]
+            except KeyError:
+                self.misses += 1
+                return None
+            self._data.move_to_end(key)
+            self.hits += 1
+            return value
+
+    def put(self, key, value) -> None:
+        with self._lock:
+            self._data[key] = value
+            self._data.move_to_end(key)
+            while len(self._data) > self.maxsize:
+                self._data.popitem(last=False)
+
+    def clear(self) -> None:
+        with self._lock:
+            self._data.clear()
+            self.hits = self.misses = 0
+
+
+_PAIRS = _Memo(_MEMO_SIZE)
+_BODIES = _Memo(_BODY_SIZE)
+
+
+def clear_cache() -> None:
+    """Forget every memoised body and pairwise result (benchmarks use it to time cold builds)."""
+    _PAIRS.clear()
+    _BODIES.clear()
+    clear_geometry_cache()
+
+
+def _body(sq: Squircle, n: int, n_dense: int = 1024) -> "_Body":
+    """Memoised :class:`_Body` of ``sq``."""
+    key = (sq, n, n_dense)
+    b = _BODIES.get(key)
+    if b is None:
+        b = _Body(sq, n, n_dense)
+        _BODIES.put(key, b)
+    return b
 
 
 # ---------------------------------------------------------------------- result
@@ -343,73 +427,154 @@ class _Slabs:
         return d, k - self.offset[sl]
 
 
-def _signed_distance(bodies: Sequence[_Body], bid: np.ndarray, q: np.ndarray, tol: float = 1e-12) -> np.ndarray:
-    """Exact signed distances of points ``q (K, 2)`` to bodies ``bid (K,)`` (negative inside)."""
-    K = len(q)
-    psi0, w0, f0 = np.empty(K), np.empty(K), np.empty(K)
+class _PerBody:
+    """Same queries as :class:`_Slabs`, answered by each body's own (memoised) k-d tree: cheaper
+    than building a slab tree when only a few bodies are involved."""
+
+    def __init__(self, bodies: Sequence[_Body], dense: bool):
+        self.bodies = bodies
+        self.dense = dense
+
+    def query(self, q: np.ndarray, bid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        d, k = np.empty(len(q)), np.empty(len(q), dtype=np.intp)
+        for b in np.unique(bid):
+            sel = np.nonzero(bid == b)[0]
+            tree = self.bodies[b].dense_tree() if self.dense else self.bodies[b].tree
+            d[sel], k[sel] = tree.query(q[sel])
+        return d, k
+
+
+def _nearest_samples(bodies: Sequence[_Body], ids, dense: bool):
+    """A nearest-boundary-sample index over ``bodies[ids]``: one slab tree for many bodies, the
+    bodies' own trees for a few (identical answers)."""
+    ids = np.unique(np.asarray(ids, dtype=np.intp))
+    return _Slabs(bodies, ids, dense) if len(ids) > 4 else _PerBody(bodies, dense)
+
+
+def _signed_distance(bodies: Sequence[_Body], bid: np.ndarray, q: np.ndarray, tol: float | None = None) -> np.ndarray:
+    """Exact signed distances of points ``q (K, 2)`` to bodies ``bid (K,)`` (negative inside):
+    :meth:`Squircle.distance` (``tol`` is accepted for compatibility and ignored)."""
+    out = np.empty(len(q))
     for b in np.unique(bid):
         sel = np.nonzero(bid == b)[0]
-        d, k = bodies[b].tree.query(q[sel])
-        psi0[sel], w0[sel], f0[sel] = bodies[b].psi[k], bodies[b].w0, d * d
-    P = np.stack([bodies[b].row for b in bid]) if K else np.empty((0, 7))
-
-    def fun(rows, ps):
-        return ((_xy(P[rows], ps[..., 0]) - q[rows, None, :]) ** 2).sum(-1)
-
-    _, f = _pattern_min(fun, psi0[:, None], w0[:, None], f0, m=9, shrink=0.3, tol=tol)
-    inside = _beta(P, q) < 0 if K else np.zeros(0, bool)
-    return np.where(inside, -1.0, 1.0) * np.sqrt(f)
+        out[sel] = bodies[b].sq.distance(q[sel])
+    return out
 
 
-def _pair_distance(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, tol: float = 1e-9):
+def _pair_distance(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, tol: float = 1e-12):
     """Minimum distance between the boundaries of bodies ``I[k]`` and ``J[k]``.
 
-    Starts from the closest pair of boundary samples (k-d tree) and refines both boundary
-    parameters by a 2-D pattern search. For disjoint convex sets (or a convex set inside the
-    other, e.g. an obstacle in the workspace) this is the Euclidean distance between the sets.
-    Returns ``(distances (K,), points_on_I (K, 2), points_on_J (K, 2))``.
+    Coarse to fine: every 8th boundary sample of both bodies; each local minimum (along the
+    boundary of ``I``) of the coarse distance that lies within the coarse sampling error of the
+    smallest is a candidate; each candidate is refined to the closest pair of samples within 8
+    samples on both boundaries, then by Newton on both boundary parameters with exact
+    derivatives (:func:`_newton_pair`); the smallest result wins. For disjoint convex sets the
+    facing local minimum is unique; for an obstacle inside the workspace the distance to the
+    boundary can have several nearly equal local minima (near a corner), all of which are
+    refined. Returns ``(distances (K,), points_on_I (K, 2), points_on_J (K, 2))``.
     """
     K = len(I)
-    c0, w0, f0 = np.empty((K, 2)), np.empty((K, 2)), np.empty(K)
-    if K:
-        # far apart: every 8th sample of i finds the right region; the window widens to match
-        ci = np.array([bodies[i].row[:2] for i in I])
-        cj = np.array([bodies[j].row[:2] for j in J])
-        rad = np.array([bodies[i].radius + bodies[j].radius for i, j in zip(I, J)])
-        stride = np.where(np.hypot(*(ci - cj).T) > rad + 0.25, 8, 1)
-        # nearest sample of j to every (strided) sample of i, all pairs in one k-d tree query
-        qs = [bodies[i].pts[::s] for i, s in zip(I, stride)]
-        lens = np.array([len(q) for q in qs])
-        d, kk = _Slabs(bodies, J, dense=False).query(np.concatenate(qs), np.repeat(J, lens))
-        width = int(lens.max())
-        pad = np.full((K, width), np.inf)
-        mask = np.arange(width)[None, :] < lens[:, None]
-        pad[mask] = d
-        a = np.argmin(pad, axis=1)  # first minimum, as before
-        flat = np.concatenate(([0], np.cumsum(lens)[:-1])) + a
-        for k, (i, j) in enumerate(zip(I, J)):
-            c0[k] = bodies[i].psi[a[k] * stride[k]], bodies[j].psi[kk[flat[k]]]
-            w0[k] = stride[k] * bodies[i].w0, bodies[j].w0
-        f0[:] = d[flat] ** 2
-    PI = np.stack([bodies[i].row for i in I]) if K else np.empty((0, 7))
-    PJ = np.stack([bodies[j].row for j in J]) if K else np.empty((0, 7))
+    if K == 0:
+        return np.empty(0), np.empty((0, 2)), np.empty((0, 2))
+    stride, half = 8, 8
+    off = np.arange(-half, half + 1)
+    cand_row, cand_c, cand_w, cand_f = [], [], [], []
+    # rows grouped by the sample counts of their two bodies (obstacles, the workspace)
+    groups: dict[tuple[int, int], list[int]] = {}
+    for k, (i, j) in enumerate(zip(I, J)):
+        groups.setdefault((len(bodies[i].pts), len(bodies[j].pts)), []).append(k)
+    for (na, nb), rows in groups.items():
+        rows = np.asarray(rows)
+        A = np.stack([bodies[i].pts for i in I[rows]])  # (k, na, 2)
+        B = np.stack([bodies[j].pts for j in J[rows]])
+        # coarse: every stride-th sample of both; profile along I of the nearest J sample
+        a, b = A[:, ::stride], B[:, ::stride]
+        d2 = ((a[:, :, None, :] - b[:, None, :, :]) ** 2).sum(-1)  # (k, na/s, nb/s)
+        kb_all = np.argmin(d2, axis=2)
+        prof = np.sqrt(np.take_along_axis(d2, kb_all[:, :, None], axis=2)[:, :, 0])
+        margin = stride * np.array([bodies[i].spacing + bodies[j].spacing for i, j in zip(I[rows], J[rows])])
+        local = (prof <= np.roll(prof, 1, axis=1)) & (prof <= np.roll(prof, -1, axis=1))
+        local &= prof <= (prof.min(axis=1) + margin)[:, None]
+        rr, ka = np.nonzero(local)
+        kb = kb_all[rr, ka]
+        # fine: all samples within `half` of each coarse candidate (wrapping around)
+        ia = (ka[:, None] * stride + off[None, :]) % na
+        ib = (kb[:, None] * stride + off[None, :]) % nb
+        a, b = A[rr[:, None], ia], B[rr[:, None], ib]
+        d2 = ((a[:, :, None, :] - b[:, None, :, :]) ** 2).sum(-1).reshape(len(rr), -1)
+        la, lb = np.divmod(np.argmin(d2, axis=1), len(off))
+        e = np.arange(len(rr))
+        fa, fb = ia[e, la], ib[e, lb]
+        for t in range(len(rr)):
+            i, j = I[rows[rr[t]]], J[rows[rr[t]]]
+            cand_c.append((bodies[i].psi[fa[t]], bodies[j].psi[fb[t]]))
+            cand_w.append((bodies[i].w0, bodies[j].w0))
+        cand_row.append(rows[rr])
+        cand_f.append(d2[e, la * len(off) + lb])
+    row = np.concatenate(cand_row)
+    PI = np.stack([bodies[i].row for i in I])
+    PJ = np.stack([bodies[j].row for j in J])
+    c, f = _newton_pair(PI[row], PJ[row], np.array(cand_c), half * np.array(cand_w), np.concatenate(cand_f), tol=tol)
+    # the best candidate of every row
+    order = np.lexsort((f, row))
+    first = order[np.concatenate(([True], row[order][1:] != row[order][:-1]))]
+    best = np.empty(K, dtype=np.intp)
+    best[row[first]] = first
+    c, f = c[best], f[best]
+    return np.sqrt(f), _xy(PI, c[:, 0]), _xy(PJ, c[:, 1])
 
-    m = 7
 
-    def fun(rows, ps):
-        # the poll is an axis-aligned m x m grid ('ij' order): only m distinct parameters per
-        # body, so evaluate the boundaries there and form the m^2 distances by broadcasting
-        g = ps.reshape(len(rows), m, m, 2)
-        a = _xy(PI[rows], g[:, :, 0, 0])  # (k, m, 2) at the m values of the first parameter
-        b = _xy(PJ[rows], g[:, 0, :, 1])
-        dx = a[:, :, None, 0] - b[:, None, :, 0]
-        dy = a[:, :, None, 1] - b[:, None, :, 1]
-        return (dx * dx + dy * dy).reshape(len(rows), m * m)
+def _newton_pair(PI: np.ndarray, PJ: np.ndarray, c0: np.ndarray, w0: np.ndarray, f0: np.ndarray, *,
+                 tol: float, max_iter: int = 60) -> tuple[np.ndarray, np.ndarray]:
+    """Minimise ``f(s, t) = |a(s) - b(t)|^2`` over the boundary parameters of rows ``PI``, ``PJ``
+    from ``c0 (K, 2)`` (the closest sample pair, value ``f0``), one problem per row.
 
-    c, f = _pattern_min(fun, c0, w0, f0, m=m, shrink=0.4, tol=tol)
-    pa = _xy(PI, c[:, 0]) if K else np.empty((0, 2))
-    pb = _xy(PJ, c[:, 1]) if K else np.empty((0, 2))
-    return np.sqrt(f), pa, pb
+    Safeguarded Newton with the exact derivatives of :func:`~navigation.geometry.boundary_jet_rows`:
+    a step is the Newton step where the Hessian is positive definite and a scaled gradient step
+    elsewhere, clipped to the sampling window ``w0`` and halved until ``f`` does not increase
+    (so ``f`` never exceeds ``f0``). Stops when every step is below ``tol`` (radians).
+    """
+    c, f = c0.astype(float).copy(), f0.astype(float).copy()
+    active = np.ones(len(c), bool)
+    for _ in range(max_iter):
+        r = np.nonzero(active)[0]
+        if r.size == 0:
+            break
+        a, a1, a2 = boundary_jet_rows(PI[r], c[r, 0])
+        b, b1, b2 = boundary_jet_rows(PJ[r], c[r, 1])
+        d = a - b
+        gs, gt = 2.0 * (d * a1).sum(-1), -2.0 * (d * b1).sum(-1)
+        hss = 2.0 * ((a1 * a1).sum(-1) + (d * a2).sum(-1))
+        htt = 2.0 * ((b1 * b1).sum(-1) - (d * b2).sum(-1))
+        hst = -2.0 * (a1 * b1).sum(-1)
+        det = hss * htt - hst * hst
+        newton = (hss > 0) & (det > 1e-12 * np.maximum(hss * htt, 1e-300))
+        safe = np.where(newton, det, 1.0)
+        step = np.where(newton[:, None], -np.stack((htt * gs - hst * gt, hss * gt - hst * gs), 1) / safe[:, None],
+                        -np.stack((gs / (np.abs(hss) + 1.0), gt / (np.abs(htt) + 1.0)), 1))
+        step = np.clip(step, -w0[r], w0[r])
+        done = newton & (np.abs(step).max(axis=1) <= tol)  # converged: the Newton step is tiny
+        active[r[done]] = False
+        r, step, newton = r[~done], step[~done], newton[~done]
+        if r.size == 0:
+            break
+        moved = np.zeros(len(r), bool)
+        taken = np.zeros(len(r))  # size of the accepted step
+        for _ in range(16):  # backtracking
+            trial = c[r] + step
+            pa = _xy(PI[r], trial[:, 0])
+            pb = _xy(PJ[r], trial[:, 1])
+            ft = ((pa - pb) ** 2).sum(-1)
+            take = (ft <= f[r]) & ~moved
+            c[r[take]] = trial[take]
+            f[r[take]] = ft[take]
+            taken[take] = np.abs(step[take]).max(axis=1)
+            moved |= take
+            if moved.all():
+                break
+            step = 0.5 * step
+        active[r] = moved & ~(newton & (taken <= tol))
+    return c, f
 
 
 def _extreme_beta(body: _Body, other_row: np.ndarray, sign: float, vals: np.ndarray | None = None) -> float:
@@ -471,7 +636,7 @@ def _common_centers(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, outsi
     PI = np.stack([bodies[i].row for i in I])
     PJ = np.stack([bodies[j].row for j in J])
 
-    slabs = _Slabs(bodies, np.concatenate((I, J)), dense=True)
+    slabs = _nearest_samples(bodies, np.concatenate((I, J)), dense=True)
     # half the largest gap between dense samples: a sampled depth exceeds the exact one by less
     half_gap = {b: 0.5 * float(np.max(np.linalg.norm(np.diff(bodies[b].dense_pts(), axis=0, append=bodies[b].dense_pts()[:1]),
                                                     axis=1))) for b in np.unique(np.concatenate((I, J)))}
@@ -649,6 +814,85 @@ def _overlap(A: _Body, B: _Body) -> bool:
     return _extreme_beta(A, B.row, 1.0, va) < 0
 
 
+# ---------------------------------------------------------------------- memoised steps
+def _workspace_relation(body: _Body, ws: _Body) -> str:
+    """``"inside"``, ``"outside"``, ``"covers"`` (contains the workspace), ``"crosses"`` or
+    ``"crosses-twice"``: where obstacle ``body`` lies relative to the workspace ``ws``."""
+    key = ("ws", body.sq, ws.sq)
+    rel = _PAIRS.get(key)
+    if rel is not None:
+        return rel
+    vals = _beta(ws.row[None], body.pts[None])[0]
+    if vals.max() < 0 and _extreme_beta(body, ws.row, -1.0, vals) <= 0:
+        rel = "inside"
+    elif vals.min() > 0 and _extreme_beta(body, ws.row, 1.0, vals) > 0:
+        rel = "covers" if np.all(_beta(body.row[None], ws.pts[None])[0] <= 0) else "outside"
+    else:
+        rel = "crosses-twice" if _arcs_outside(vals) > 1 else "crosses"
+    _PAIRS.put(key, rel)
+    return rel
+
+
+def _pair_relation(a: _Body, b: _Body) -> str | None:
+    """``None`` (disjoint), ``"overlap"``, ``"second-inside"`` (``b`` contained in ``a``, up to
+    rounding: an identical copy, or one touching from inside, counts) or ``"first-inside"``."""
+    key = ("ov", a.sq, b.sq)
+    rel = _PAIRS.get(key)
+    if rel is not None:
+        return rel or None
+    rel = ""
+    if _overlap(a, b):
+        vb = _beta(a.row[None], b.pts[None])[0]
+        va = _beta(b.row[None], a.pts[None])[0]
+        if vb.max() <= _CONTAINED and _extreme_beta(b, a.row, -1.0, vb) <= _CONTAINED:
+            rel = "second-inside"
+        elif va.max() <= _CONTAINED and _extreme_beta(a, b.row, -1.0, va) <= _CONTAINED:
+            rel = "first-inside"
+        else:
+            rel = "overlap"
+    _PAIRS.put(key, rel)
+    return rel or None
+
+
+def _distances(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray) -> np.ndarray:
+    """:func:`_pair_distance` of rows ``(I[k], J[k])``, computing only the rows not memoised."""
+    keys = [("d", bodies[i].sq, bodies[j].sq) for i, j in zip(I, J)]
+    out = np.array([_PAIRS.get(k) for k in keys], dtype=float)  # None -> nan
+    todo = np.nonzero(np.isnan(out))[0]
+    if todo.size:
+        d, _, _ = _pair_distance(bodies, I[todo], J[todo])
+        out[todo] = d
+        for t, v in zip(todo, d):
+            _PAIRS.put(keys[t], float(v))
+    return out
+
+
+def _centers(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, outside: np.ndarray):
+    """:func:`_common_centers` of rows ``(I[k], J[k])``, computing only the rows not memoised."""
+    keys = [("c", bodies[i].sq, bodies[j].sq, bool(o)) for i, j, o in zip(I, J, outside)]
+    found = [_PAIRS.get(k) for k in keys]
+    todo = np.array([t for t, v in enumerate(found) if v is None], dtype=np.intp)
+    c, d = np.empty((len(I), 2)), np.empty(len(I))
+    if todo.size:
+        c[todo], d[todo] = _common_centers(bodies, I[todo], J[todo], outside[todo])
+        for t in todo:
+            _PAIRS.put(keys[t], (c[t].copy(), float(d[t])))
+    for t, v in enumerate(found):
+        if v is not None:
+            c[t], d[t] = v
+    return c, d
+
+
+def _root_depth(body: _Body) -> float:
+    """Depth of a squircle's own centre inside it (exact distance to its boundary)."""
+    key = ("r", body.sq)
+    d = _PAIRS.get(key)
+    if d is None:
+        d = float(-_signed_distance([body], np.array([0]), np.array([body.sq.center]))[0])
+        _PAIRS.put(key, d)
+    return d
+
+
 # ---------------------------------------------------------------------- construction
 def _plural(items: Sequence[int]) -> str:
     """``"0, 1 and the workspace boundary"``: input indices, ``-1`` for the boundary (last)."""
@@ -707,29 +951,26 @@ def build_forest(workspace: Squircle, obstacles: Sequence[Squircle], *, min_gap:
         raise ValueError(f"min_gap and min_overlap must be finite and >= 0, got {min_gap}, {min_overlap}")
 
     n = len(obstacles)
-    bodies = [_Body(o, _SAMPLES) for o in obstacles]
+    bodies = [_body(o, _SAMPLES) for o in obstacles]
     W = n  # body index of the workspace
-    bodies.append(_Body(workspace, _WS_SAMPLES, n_dense=4096))
-    ws = bodies[W]
+    bodies.append(_body(workspace, _WS_SAMPLES, n_dense=4096))
 
     # --- relation of every obstacle to the workspace boundary
     dropped: dict[int, str] = {}
     crossing: set[int] = set()
     for k in range(n):
-        vals = _beta(ws.row[None], bodies[k].pts[None])[0]
-        if vals.max() < 0 and _extreme_beta(bodies[k], ws.row, -1.0, vals) <= 0:
-            continue  # inside the workspace
-        if vals.min() > 0 and _extreme_beta(bodies[k], ws.row, 1.0, vals) > 0:
-            if np.all(_beta(bodies[k].row[None], ws.pts[None])[0] <= 0):
-                raise ForestError(f"obstacle {k} covers the whole workspace: there is no free space",
-                                  obstacles=(k,), rule="covers-workspace")
+        rel = _workspace_relation(bodies[k], bodies[W])
+        if rel == "covers":
+            raise ForestError(f"obstacle {k} covers the whole workspace: there is no free space",
+                              obstacles=(k,), rule="covers-workspace")
+        if rel == "outside":
             dropped[k] = "entirely outside the workspace"
-            continue
-        if _arcs_outside(vals) > 1:
+        elif rel == "crosses-twice":
             raise ForestError(f"obstacle {k} crosses the workspace boundary more than once, which closes "
                               f"a cycle through the workspace boundary (a wall may touch the boundary only "
                               f"at one place)", obstacles=(k, -1), rule="cycle")
-        crossing.add(k)
+        elif rel == "crosses":
+            crossing.add(k)
 
     # --- candidate pairs (bounding circles), exact overlap and containment
     live = [k for k in range(n) if k not in dropped]
@@ -743,17 +984,14 @@ def build_forest(workspace: Squircle, obstacles: Sequence[Squircle], *, min_gap:
             i, j = live[a], live[b]
             if np.hypot(*(cs[a] - cs[b])) > rs[a] + rs[b] + margin:
                 continue
-            if not _overlap(bodies[i], bodies[j]):
+            rel = _pair_relation(bodies[i], bodies[j])
+            if rel is None:
                 continue
             overlaps.add((i, j))
             # containment (redundant obstacles): j inside i, or i inside j
-            bi, bj = bodies[i], bodies[j]
-            vj = _beta(bi.row[None], bj.pts[None])[0]
-            vi = _beta(bj.row[None], bi.pts[None])[0]
-            # (up to rounding: an identical copy, or one touching from inside, is contained too)
-            if vj.max() <= _CONTAINED and _extreme_beta(bj, bi.row, -1.0, vj) <= _CONTAINED:
+            if rel == "second-inside":
                 dropped.setdefault(j, f"contained in obstacle {i}")
-            elif vi.max() <= _CONTAINED and _extreme_beta(bi, bj.row, -1.0, vi) <= _CONTAINED:
+            elif rel == "first-inside":
                 dropped.setdefault(i, f"contained in obstacle {j}")
 
     keep = [k for k in range(n) if k not in dropped]
@@ -786,16 +1024,13 @@ def build_forest(workspace: Squircle, obstacles: Sequence[Squircle], *, min_gap:
     edge_set = set(edges)
     pairs = [(a, b) for a in range(m) for b in range(a + 1, m) if (a, b) not in edge_set]
     if pairs:
-        I = np.array([keep[a] for a, _ in pairs])
-        J = np.array([keep[b] for _, b in pairs])
-        d, _, _ = _pair_distance(bodies, I, J)
+        d = _distances(bodies, np.array([keep[a] for a, _ in pairs]), np.array([keep[b] for _, b in pairs]))
         for (a, b), v in zip(pairs, d):
             distances[a, b] = distances[b, a] = v
     wall = np.zeros(m)
     inner = [a for a in range(m) if a not in set(ws_children)]
     if inner:
-        d, _, _ = _pair_distance(bodies, np.array([keep[a] for a in inner]), np.full(len(inner), W))
-        wall[inner] = d
+        wall[inner] = _distances(bodies, np.array([keep[a] for a in inner]), np.full(len(inner), W))
 
     close = [(a, b, distances[a, b]) for a, b in pairs if distances[a, b] < min_gap]
     if close:
@@ -851,12 +1086,11 @@ def build_forest(workspace: Squircle, obstacles: Sequence[Squircle], *, min_gap:
     if nonroot:
         I = np.array([keep[i] for i in nonroot])
         J = np.array([W if parent[i] == WORKSPACE else keep[parent[i]] for i in nonroot])
-        c, d = _common_centers(bodies, I, J, J == W)
+        c, d = _centers(bodies, I, J, J == W)
         center[nonroot], cdepth[nonroot] = c, d
     if roots:
-        rc = np.array([obstacles[keep[r]].center for r in roots])
-        center[roots] = rc
-        cdepth[roots] = -_signed_distance(bodies, np.array([keep[r] for r in roots]), rc)
+        center[roots] = np.array([obstacles[keep[r]].center for r in roots])
+        cdepth[roots] = [_root_depth(bodies[keep[r]]) for r in roots]
     shallow = [i for i in nonroot if cdepth[i] < min_overlap]
     if shallow:
         i = min(shallow, key=lambda t: cdepth[t])

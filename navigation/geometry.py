@@ -142,9 +142,8 @@ class Squircle:
 
     @property
     def area(self) -> float:
-        pts = self.boundary_points(512)
-        x, y = pts[:, 0], pts[:, 1]
-        return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+        """Enclosed area (shoelace formula over 512 boundary samples; memoised)."""
+        return _area(self)
 
     def packed(self) -> np.ndarray:
         """Parameters as one row ``[cx, cy, cos, sin, width/2, height/2, s]`` (see :func:`pack`)."""
@@ -259,6 +258,9 @@ class Squircle:
         ``samples`` boundary points (it is 1 for ellipses and for rectangles with rounded
         corners), then a 1e-9 m safety margin is added.
 
+        The result is memoised per ``(squircle, r, samples)`` (the map grows the same estimates
+        again and again).
+
         Raises
         ------
         ValueError
@@ -269,6 +271,9 @@ class Squircle:
             raise ValueError(f"grow radius must be finite, got {r}")
         if r == 0.0:
             return self
+        return _grow(self, r, int(samples))
+
+    def _grow_uncached(self, r: float, samples: int) -> "Squircle":
         if r < 0 and -2 * r >= min(self.width, self.height):
             raise ValueError(f"cannot shrink a {self.width} x {self.height} squircle by {-r}")
         k = 1.0
@@ -305,6 +310,20 @@ def beta_rows(P: np.ndarray, x, y) -> np.ndarray:
     return 0.5 * (u2 + w2 + root) - 1.0
 
 
+@functools.lru_cache(maxsize=8192)
+def _grow(sq: Squircle, r: float, samples: int) -> Squircle:
+    """Memoised :meth:`Squircle.grow`."""
+    return sq._grow_uncached(r, samples)
+
+
+@functools.lru_cache(maxsize=4096)
+def _area(sq: Squircle) -> float:
+    """Area of ``sq`` (see :attr:`Squircle.area`)."""
+    pts = sq.boundary_points(512)
+    x, y = pts[:, 0], pts[:, 1]
+    return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+
+
 def point_at_rows(P: np.ndarray, psi: np.ndarray) -> np.ndarray:
     """Boundary points ``(K, m, 2)`` of rows ``P (K, 7)`` at normalised angles ``psi (K, m)``
     (the parametrisation of :meth:`Squircle.point_at`)."""
@@ -321,6 +340,43 @@ def _point_xy_rows(P: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarr
     ly = rho * uy * P[:, HH, None]
     c, sn = P[:, COS, None], P[:, SIN, None]
     return P[:, CX, None] + c * lx - sn * ly, P[:, CY, None] + sn * lx + c * ly
+
+
+def boundary_jet_rows(P: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Boundary points of rows ``P (K, 7)`` at angles ``psi (K, ...)`` and their first and second
+    derivatives with respect to ``psi`` (exact), each of shape ``psi.shape + (2,)``.
+
+    Same parametrisation as :meth:`Squircle.point_at`: with ``m = cos psi sin psi``,
+    ``g = sqrt(1 - 4 s^2 m^2)`` and ``rho = sqrt(2 / (1 + g))`` the point is
+    ``c + R(theta) (hw rho cos psi, hh rho sin psi)``. ``g >= sqrt(1 - s^2) > 0`` for ``s < 1``.
+    """
+    C = P.T.reshape((7, -1) + (1,) * (psi.ndim - 1))
+    cs, sn = np.cos(psi), np.sin(psi)
+    m, m1, m2 = cs * sn, cs * cs - sn * sn, -4.0 * cs * sn
+    k = 4.0 * C[S] * C[S]
+    h = np.maximum(1.0 - k * m * m, 1e-300)
+    h1 = -2.0 * k * m * m1
+    h2 = -2.0 * k * (m1 * m1 + m * m2)
+    g = np.sqrt(h)
+    g1 = h1 / (2.0 * g)
+    g2 = (h2 - 2.0 * g1 * g1) / (2.0 * g)
+    u = 1.0 + g
+    r = np.sqrt(2.0 / u)
+    r1 = -0.5 * r * g1 / u
+    r2 = 0.75 * r * g1 * g1 / (u * u) - 0.5 * r * g2 / u
+    # (lx, ly) = (hw r cos, hh r sin) and derivatives (product rule; cos' = -sin, sin' = cos)
+    lx = (r * cs, r1 * cs - r * sn, r2 * cs - 2.0 * r1 * sn - r * cs)
+    ly = (r * sn, r1 * sn + r * cs, r2 * sn + 2.0 * r1 * cs - r * sn)
+    c, s_ = C[COS], C[SIN]
+    out = []
+    for order in range(3):
+        x = C[HW] * lx[order]
+        y = C[HH] * ly[order]
+        px, py = c * x - s_ * y, s_ * x + c * y
+        if order == 0:
+            px, py = px + C[CX], py + C[CY]
+        out.append(np.stack((px, py), axis=-1))
+    return out[0], out[1], out[2]
 
 
 class ExactDistance:
@@ -446,6 +502,13 @@ class ExactDistance:
 def _exact_distance(sq: Squircle, min_samples: int) -> ExactDistance:
     """The (immutable) distance table of one squircle, built once."""
     return ExactDistance([sq], spacing=0.05, stages=10, m=16, min_samples=min_samples)
+
+
+def clear_geometry_cache() -> None:
+    """Forget the memoised per-squircle tables (distance samples, areas)."""
+    _exact_distance.cache_clear()
+    _area.cache_clear()
+    _grow.cache_clear()
 
 
 def _max_arc(squircles, psi: np.ndarray, sub: int = 16) -> np.ndarray:

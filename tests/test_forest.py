@@ -447,26 +447,28 @@ class TestFastPathsMatchReferences:
             assert np.array_equal(d[sel], d_ref)
             assert np.allclose(np.linalg.norm(pts[k[sel]] - q[sel], axis=1), d_ref, rtol=0, atol=1e-15)
 
-    def test_pair_distance_equals_unseparated_poll(self, bodies, monkeypatch):
-        """The separable 7 x 7 poll gives the same distances as evaluating all 49 grid points."""
+    def test_pair_distance_is_the_dense_minimum(self, bodies):
+        """Coarse-to-fine samples + Newton find the global minimum of the boundary distance for
+        every pair of office obstacles and every obstacle-workspace pair (walls with nearly
+        parallel faces included): never above a dense brute force, at most 1e-9 below it."""
         import navigation.forest as F
 
         n = len(bodies) - 1
         I, J = np.triu_indices(n, 1)
         I, J = np.concatenate((I, np.arange(n))), np.concatenate((J, np.full(n, n)))
-        fast, _, _ = F._pair_distance(bodies, I, J)
-        PI = np.stack([bodies[i].row for i in I])
-        PJ = np.stack([bodies[j].row for j in J])
-        plain = F._pattern_min
-
-        def reference(fun, c0, w0, f0, **kw):  # ignore the separable fun: all 49 points
-            def full(rows, ps):
-                return ((F._xy(PI[rows], ps[..., 0]) - F._xy(PJ[rows], ps[..., 1])) ** 2).sum(-1)
-            return plain(full, c0, w0, f0, **kw)
-
-        monkeypatch.setattr(F, "_pattern_min", reference)
-        slow, _, _ = F._pair_distance(bodies, I, J)
-        assert np.array_equal(fast, slow)
+        d, pa, pb = F._pair_distance(bodies, I, J)
+        assert np.allclose(np.linalg.norm(pa - pb, axis=1), d, rtol=0, atol=1e-12)
+        for k, (i, j) in enumerate(zip(I, J)):
+            a, b = bodies[i].sq, bodies[j].sq
+            if F._pair_relation(bodies[i], bodies[j]) is not None if j < n else \
+                    F._workspace_relation(bodies[i], bodies[j]) != "inside":
+                continue  # overlapping pairs have no boundary gap to compare
+            psi = a.boundary_psi(4000)
+            dd = np.abs(b.distance(a.point_at(psi)))
+            m = int(np.argmin(dd))
+            fine = np.linspace(psi[m - 1], psi[(m + 1) % len(psi)] + (2 * np.pi if m + 1 == len(psi) else 0), 401)
+            brute = min(dd.min(), np.abs(b.distance(a.point_at(fine))).min())
+            assert brute - 1e-9 <= d[k] <= brute + 1e-12, (i, j, d[k], brute)
 
     @pytest.mark.parametrize("name", ["cluttered20", "office"])
     def test_bounded_poll_gives_the_unbounded_result(self, monkeypatch, name):
@@ -480,3 +482,78 @@ class TestFastPathsMatchReferences:
         assert np.array_equal(fast.center, slow.center)
         assert np.array_equal(fast.center_depth, slow.center_depth)
         assert np.array_equal(fast.distances, slow.distances)
+
+
+# ---------------------------------------------------------------------- memo (incremental rebuilds)
+def _assert_same_forest(a: Forest, b: Forest) -> None:
+    for name in ("obstacles", "source_index", "dropped", "parent", "children", "depth", "roots", "tree_of"):
+        assert getattr(a, name) == getattr(b, name), name
+    for name in ("center", "center_depth", "distances", "wall_distance"):
+        assert np.allclose(getattr(a, name), getattr(b, name), rtol=0, atol=1e-12), name
+
+
+class TestMemo:
+    """build_forest memoises per-obstacle and pairwise results keyed by the squircles: a rebuild
+    after any sequence of map changes equals a cold build (up to rounding)."""
+
+    @pytest.mark.parametrize("seed", range(6))
+    def test_changes_then_rebuild_equals_cold_build(self, seed):
+        from navigation.forest import clear_cache
+
+        rng = np.random.default_rng(100 + seed)
+        world = random_forest_world(seed, n_obstacles=10, max_depth=3)
+        pool = list(world.obstacles)
+        current = pool[: len(pool) // 2]
+        clear_cache()
+        checked = 0
+        for step in range(8):
+            op = rng.integers(3)
+            if op == 0 and len(current) < len(pool):  # add one not yet present
+                current = current + [next(o for o in pool if o not in current)]
+            elif op == 1 and len(current) > 1:  # remove one
+                k = int(rng.integers(len(current)))
+                current = current[:k] + current[k + 1:]
+            else:  # update one: move it a little
+                k = int(rng.integers(len(current)))
+                o = current[k]
+                moved = Squircle(tuple(np.add(o.center, rng.normal(scale=0.01, size=2))), o.width, o.height,
+                                 o.theta, o.s)
+                current = current[:k] + [moved] + current[k + 1:]
+            try:
+                warm = build_forest(world.workspace, current)
+            except ForestError as err:
+                clear_cache()
+                with pytest.raises(ForestError) as cold_err:
+                    build_forest(world.workspace, current)
+                assert (cold_err.value.rule, cold_err.value.obstacles) == (err.rule, err.obstacles)
+                checked += 1
+                continue
+            # cold build with the memo cleared; then restore the warm state for the next step
+            clear_cache()
+            cold = build_forest(world.workspace, current)
+            _assert_same_forest(warm, cold)
+            checked += 1
+        assert checked == 8
+
+    def test_refusals_are_repeated_from_the_memo(self):
+        a, b = wall(5.0, 5.0, 2.0), wall(5.0, 5.0, 1.0, thick=0.1)  # b lies inside a
+        c = vwall(5.9, 5.0, 1.0)
+        d = vwall(4.1, 5.0, 1.0)
+        e = wall(5.0, 5.45, 2.0)  # closes the cycle a-c-e-d
+        for _ in range(2):
+            with pytest.raises(ForestError) as err:
+                build_forest(WS, [a, c, d, e])
+            assert err.value.rule == "cycle"
+        for _ in range(2):
+            assert build_forest(WS, [a, b]).dropped == ((1, "contained in obstacle 0"),)
+
+    def test_lru_bound(self):
+        from navigation.forest import _Memo
+
+        m = _Memo(3)
+        for k in range(5):
+            m.put(k, k * 10)
+        assert m.get(0) is None and m.get(1) is None
+        assert m.get(2) == 20
+        m.put(5, 50)  # evicts 3, the least recently used
+        assert m.get(3) is None and m.get(2) == 20 and m.get(5) == 50
