@@ -9,7 +9,7 @@ import json
 
 from benchmarks import navigation as bench
 
-METRICS = ("forest_build", "construction", "one_point", "batch_10k", "grid_200")
+METRICS = ("forest_build", "construction", "update", "one_point", "batch_10k", "grid_200")
 
 
 def test_benchmark_quick_writes_results(tmp_path, capsys):
@@ -17,7 +17,7 @@ def test_benchmark_quick_writes_results(tmp_path, capsys):
     assert bench.main(["--quick", "--out", str(out)], sizes=(5,), shared=()) == 0
     data = json.loads((out / "navigation.json").read_text())
     assert data["benchmark"] == "navigation" and data["quick"] is True
-    assert set(data["targets"]) == {"construction", "one_point", "batch_10k", "grid_200"}
+    assert set(data["targets"]) == {"construction", "update", "one_point", "batch_10k", "grid_200"}
     assert {"python", "numpy", "platform", "cpus"} <= set(data["machine"])
     (row,) = data["worlds"]
     assert row["world"] == "random5" and row["n_obstacles"] == 5 and row["max_depth"] == 4
