@@ -53,7 +53,6 @@ Symbols
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass, field
 
@@ -109,9 +108,8 @@ class RoadmapConfig:
             raise TampError(f"RoadmapConfig.vertices_per_obstacle must be a positive multiple of 4, got {n!r}")
 
 
-@functools.lru_cache(maxsize=4096)
 def grown(sq: Squircle, amount: float) -> Squircle:
-    """``sq.grow(amount)``, cached (growing is iterative and costs ~10 ms per squircle).
+    """``sq.grow(amount)`` (memoised by :meth:`Squircle.grow`) with a :class:`WorldError` on failure.
 
     Raises
     ------
