@@ -2,13 +2,16 @@
 
 This package owns LTL formulas (parsing and printing, FORMATS.md syntax), Büchi automata (HOA v1
 in and out, :mod:`tamp.ltl`), the navigation map over regions x orientations
-(:mod:`tamp.navmap`), its product with the mission automaton (:mod:`tamp.product`) and the lasso
+(:mod:`tamp.navmap`), its product with the mission automaton (:mod:`tamp.product`), the lasso
 planner with re-planning and run-time mission changes (:class:`MissionPlanner`,
-:mod:`tamp.planner`; paper 001 sections 4.1.1, 4.2.4 and 5.2). Harmonic trees and the task
-executive (``Executive``) that turns a plan into navigation goals come with later issues (see
-the Status section of the README).
+:mod:`tamp.planner`; paper 001 sections 4.1.1, 4.2.4 and 5.2), and harmonic trees of oriented
+waypoints between task poses on a visibility roadmap (:mod:`tamp.roadmap`,
+:mod:`tamp.harmonic_tree`; eq. 7-8, 26 and section 4.2.3).
 """
 
+from .harmonic_tree import HarmonicTree, NoTreePathError, RotationWeights, plan_tree, revise_trees
 from .planner import MissionMode, MissionPlanner, Plan
+from .roadmap import Roadmap, RoadmapConfig
 
-__all__ = ["MissionPlanner", "MissionMode", "Plan"]
+__all__ = ["MissionPlanner", "MissionMode", "Plan", "HarmonicTree", "NoTreePathError", "RotationWeights",
+           "plan_tree", "revise_trees", "Roadmap", "RoadmapConfig"]
