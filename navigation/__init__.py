@@ -8,6 +8,8 @@ Public entry points::
     nf.value(q), nf.gradient(q), nf.hessian(q)         # q of shape (2,) or (N, 2)
     navigation.descend(nf, start)                      # normalised-gradient descent
 
+``navigation.OnlineWorld`` is the versioned obstacle set of a discovered world (added, updated
+and removed obstacles, incremental navigation-function updates, paper 001 section 4.2.2).
 ``navigation.OrientedField(nf, heading)`` is the oriented field of eq. 20-23 (arrival with a
 chosen heading); ``navigation.track`` / ``track_waypoints`` are the unicycle controller of
 eq. 24-25. Later layers own perception
@@ -26,6 +28,7 @@ from .errors import (
 )
 from .forest import Forest, build_forest
 from .geometry import Squircle
+from .online import OnlineWorld, WorldChange
 from .oriented import OrientedEval, OrientedField
 from .potential import NavEval, NavigationFunction, NavParams
 from .world import World, load_world
@@ -41,12 +44,14 @@ __all__ = [
     "NavParams",
     "NavigationError",
     "NavigationFunction",
+    "OnlineWorld",
     "OrientedEval",
     "OrientedField",
     "OutsideFreeSpaceError",
     "PointsError",
     "Squircle",
     "World",
+    "WorldChange",
     "WorldError",
     "build_forest",
     "descend",
