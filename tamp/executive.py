@@ -1,0 +1,699 @@
+"""The online task executive: hybrid execution and joint online adaptation (paper 001 sections
+4.1.4 and 4.2).
+
+One stateful object, :class:`Executive`, turns ``(pose, scan)`` ticks into unicycle commands
+``(v, omega)`` while it keeps every layer consistent with what the robot has seen::
+
+    scan -> perception.ObstacleMap -> forest of stars (navigation.build_forest)
+         -> roadmap (tamp.roadmap) -> harmonic trees (tamp.harmonic_tree)
+         -> navigation-map costs / removed transitions (tamp.navmap) -> plan (MissionPlanner)
+    plan -> current leg (harmonic tree from the pose to the next region)
+         -> oriented fields of the current and following waypoints -> eq. 24-25 command
+
+Work is triggered by what changed, never done on every tick:
+
+* a :class:`perception.MapUpdate` with ``changed`` rebuilds the forest (memoised per obstacle in
+  ``navigation.build_forest``, so only the changed obstacles cost), drops the cached fields,
+  and checks the current leg and every evaluated transition against the changed obstacles; a
+  re-plan runs only when one of them is hit (or when the executive is ``blocked``);
+* reaching a region advances the mission automaton and re-plans (the next leg);
+* a mission event (``replace``, ``add``, ``urgent``; world-file ``events`` at their times or
+  :meth:`Executive.request`) re-plans.
+
+Planning is *lazy* (section 4.2.4 with the lazy evaluation of roadmap planners): the navigation
+map starts fully connected with its straight-line costs, which are lower bounds of every tree
+cost; the planner's plan is computed, the transitions it uses that have no harmonic tree yet
+get one (their cost set, or the transition removed when no tree exists), and the plan is
+computed again until it only uses evaluated transitions. The result is optimal for the tree
+costs while only the transitions a plan could use are ever searched.
+
+Hybrid execution (section 4.1.4): the current leg is the harmonic tree from the robot's pose
+to the next region's centre; the executive tracks the oriented field of the current waypoint
+and, through the switch of eq. 25, of the following one, and moves to the next waypoint when
+the robot is within ``waypoint_tolerance`` of the current one. The region counts as reached
+when the robot's centre enters its disc.
+
+Choices where the paper is vague, and why
+-----------------------------------------
+* **Arrival heading.** The navigation map carries orientations, but the map's rotation term
+  ``w |theta - theta'|`` does not depend on the travel direction, so the orientation the plan
+  picks says nothing about how the robot arrives. The goal heading of a leg is the direction
+  of the leg's last segment (the robot arrives straight, no swing around the region).
+* **Roadmap updates.** ``Roadmap.with_obstacles`` handles additions. An estimate the map
+  *updates* or *removes* is handled conservatively: the roadmap keeps avoiding the old shape
+  too (a superset of the obstacles is safe) until ``rebuild_after`` such stale shapes pile up,
+  or a transition is found blocked, when it is rebuilt from the current obstacles.
+* **Buffer fallback.** With the paper's 0.15 m buffer, passages narrower than
+  ``2 (r + 0.15)`` are closed for the trees. A transition without a tree at ``buffer`` is
+  retried at ``fallback_buffer`` before it is declared blocked.
+* **Known obstacles** (``known_obstacles`` in the world file, or all with ``known=True``) are
+  used as given; lidar returns on them are dropped before perception (a NaN range: no return
+  and no free-space evidence). When the known obstacles grown by the robot radius are not a
+  forest of stars (``cluttered20``: a cycle), the forest construction refuses them; they are
+  then left to perception (discovered by the lidar), which repairs cycles by merging, and the
+  status message says so.
+* **Blocked.** When no accepting plan exists in the current navigation map the executive stops
+  (``v = omega = 0``), reports ``blocked`` with the regions it cannot reach, and on every later
+  map change rebuilds the roadmap, re-evaluates the removed transitions and re-plans.
+* **Weights.** The rotation weights of eq. 26 stay at their initial value (the least-squares
+  refit of section 4.2.3 needs measured costs per traversed edge; not wired in yet).
+
+Commands are always finite and within ``v_max`` / ``omega_max``; a non-finite or malformed pose,
+or a pose outside the workspace, stops the robot with state ``error``.
+"""
+
+from __future__ import annotations
+
+import enum
+import logging
+import math
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from navigation.control import ControllerConfig, track_waypoints
+from navigation.errors import ForestError, NavigationError, TampError
+from navigation.forest import build_forest
+from navigation.geometry import Squircle, beta_rows, pack
+from navigation.oriented import OrientedField
+from navigation.potential import NavigationFunction
+from navigation.world import World
+from perception.errors import ScanError
+from perception.fit import inflate
+from perception.map import ObstacleMap
+
+from .errors import NoPlanError
+from .harmonic_tree import NoTreePathError, RotationWeights, TreeFailure, plan_tree
+from .ltl import ops
+from .navmap import START, Node
+from .planner import MissionMode, MissionPlanner, Plan
+from .roadmap import Roadmap, RoadmapConfig, segments_clear
+
+__all__ = ["Executive", "ExecutiveConfig", "ExecutiveState", "TickResult"]
+
+log = logging.getLogger("tamp.executive")
+
+
+class ExecutiveState(str, enum.Enum):
+    """FORMATS.md ``status.state``."""
+
+    IDLE = "idle"
+    PLANNING = "planning"
+    EXECUTING = "executing"
+    DONE = "done"
+    BLOCKED = "blocked"
+    ERROR = "error"
+
+
+@dataclass(frozen=True, slots=True)
+class ExecutiveConfig:
+    """Tuning of the executive (frozen, validated).
+
+    Attributes
+    ----------
+    buffer : float
+        Safety buffer of the harmonic-tree roadmap beyond the robot radius (paper: 0.15 m).
+    fallback_buffer : float
+        Buffer of the second roadmap a transition is retried on when the first has no path
+        (``0`` disables the fallback).
+    waypoint_tolerance : float
+        Distance at which the current waypoint counts as passed (m).
+    check_margin : float
+        A changed obstacle invalidates a tree when one of its segments comes within
+        ``robot radius + check_margin`` of it.
+    rebuild_after : int
+        Stale (updated or removed) shapes tolerated in the roadmap before it is rebuilt.
+    n_orient, n_headings : int
+        Orientations per region in the navigation map; headings per roadmap vertex.
+    max_plan_rounds : int
+        Rounds of lazy evaluation per re-plan (each evaluates the transitions of one plan).
+    blocked_timeout : float
+        How long (s) :func:`tamp.run.run_mission` waits in ``blocked`` before giving up
+        (the executive itself waits forever).
+    """
+
+    buffer: float = 0.15
+    fallback_buffer: float = 0.03
+    waypoint_tolerance: float = 0.1
+    check_margin: float = 0.05
+    rebuild_after: int = 8
+    n_orient: int = 8
+    n_headings: int = 8
+    max_plan_rounds: int = 40
+    blocked_timeout: float = 10.0
+
+    def __post_init__(self):
+        for name in ("buffer", "fallback_buffer", "check_margin", "blocked_timeout"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+                raise TampError(f"ExecutiveConfig.{name} must be a finite number >= 0, got {v!r}")
+        if not (isinstance(self.waypoint_tolerance, (int, float)) and self.waypoint_tolerance > 0):
+            raise TampError(f"ExecutiveConfig.waypoint_tolerance must be > 0, got {self.waypoint_tolerance!r}")
+        for name in ("rebuild_after", "n_orient", "n_headings", "max_plan_rounds"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+                raise TampError(f"ExecutiveConfig.{name} must be a positive int, got {v!r}")
+
+
+@dataclass(frozen=True, slots=True)
+class TickResult:
+    """One tick's output: the command, the status (FORMATS.md fields) and what happened."""
+
+    v: float
+    omega: float
+    status: dict
+    replanned: bool = False
+    map_changed: bool = False
+    compute: float = 0.0  #: wall seconds spent in the tick
+
+
+# ---------------------------------------------------------------------------------------------
+class _Roads:
+    """A roadmap for one buffer, updated lazily: new shapes wait in ``pending`` until a tree is
+    needed; ``stale`` counts updated/removed shapes it still avoids."""
+
+    def __init__(self, workspace: Squircle, radius: float, buffer: float, obstacles):
+        self.workspace, self.radius = workspace, radius
+        self.config = RoadmapConfig(buffer=buffer)
+        self.rm: Roadmap | None = None
+        self.obstacles = list(obstacles)
+        self.pending: list[Squircle] = []
+        self.stale = 0
+
+    def current(self) -> Roadmap:
+        if self.rm is None:
+            self.rm = Roadmap.build(self.workspace, self.obstacles, self.radius, self.config)
+            self.pending = []
+        elif self.pending:
+            self.rm = self.rm.with_obstacles(self.pending)
+            self.pending = []
+        return self.rm
+
+    def add(self, shapes, stale: int = 0) -> None:
+        self.pending.extend(shapes)
+        self.stale += stale
+
+    def reset(self, obstacles) -> None:
+        self.obstacles = list(obstacles)
+        self.rm, self.pending, self.stale = None, [], 0
+
+
+def _pose3(pose) -> tuple[float | None, tuple[float, float, float]]:
+    """``(stamp or None, (x, y, theta))`` from a pose message or three numbers; TampError."""
+    stamp = None
+    if isinstance(pose, Mapping):
+        try:
+            stamp = pose.get("stamp")
+            vals = (pose["x"], pose["y"], pose["theta"])
+        except KeyError as err:
+            raise TampError(f"pose message misses field {err.args[0]!r}") from None
+    else:
+        vals = pose
+    try:
+        p = tuple(float(v) for v in vals)
+    except (TypeError, ValueError):
+        raise TampError(f"pose must be three finite numbers (x, y, theta), got {pose!r}") from None
+    if len(p) != 3 or not all(math.isfinite(v) for v in p):
+        raise TampError(f"pose must be three finite numbers (x, y, theta), got {pose!r}")
+    if stamp is not None:
+        try:
+            stamp = float(stamp)
+        except (TypeError, ValueError):
+            stamp = None
+    return stamp, p
+
+
+class Executive:
+    """Online task executive (paper 001 sections 4.1.4, 4.2); see the module docstring.
+
+    Parameters
+    ----------
+    world : navigation.World
+        Workspace, regions, robot, lidar, default ``task`` and ``events``. Its obstacles are
+        *not* used except those known at start.
+    task : str, optional
+        LTL mission (default: the world's ``task``).
+    known : bool
+        ``True``: every obstacle of ``world`` is known at start (no perception). ``False``
+        (default): only ``world.known_obstacles``.
+    config : ExecutiveConfig, optional
+
+    Raises
+    ------
+    TampError
+        (``LtlSyntaxError``, ``UnknownRegionError``, ``UnsatisfiableError``, ...) a task the
+        planner refuses; a ``world`` that is not a World.
+
+    Use
+    ---
+    ``result = ex.tick(pose, scan=None, points=None, now=None)`` once per control period;
+    ``result.v, result.omega`` is the command, ``result.status`` the FORMATS.md ``status``
+    payload. ``ex.request(formula, mode)`` changes the mission at run time.
+    """
+
+    def __init__(self, world: World, task: str | None = None, *, known: bool = False,
+                 config: ExecutiveConfig | None = None):
+        if not isinstance(world, World):
+            raise TampError(f"world must be a navigation.World, got {type(world).__name__}")
+        t0 = time.perf_counter()
+        self.world = world
+        self.config = cfg = config or ExecutiveConfig()
+        self.radius = r = float(world.robot.radius)
+        self.control = ControllerConfig.from_robot(world.robot)
+        self.cspace_workspace = world.workspace.grow(-r) if r > 0 else world.workspace
+        self.messages: list[str] = []
+        idx = range(len(world.obstacles)) if known else world.known_obstacles
+        known_obs = [world.obstacles[i] for i in idx]
+        self._known_inflated = [inflate(o, r) for o in known_obs]
+        try:
+            self.forest = build_forest(self.cspace_workspace, self._known_inflated)
+        except ForestError as err:
+            self._note(f"known obstacles grown by the robot radius are not a forest of stars ({err}); "
+                       "they are left to perception (discovered by the lidar)")
+            known_obs, self._known_inflated = [], []
+            self.forest = build_forest(self.cspace_workspace, [])
+        self.known = known_obs
+        self._known_rows = pack([inflate(o, 0.02) for o in known_obs]) if known_obs else None
+        all_known = known and len(known_obs) == len(world.obstacles)
+        self.omap: ObstacleMap | None = None if all_known else ObstacleMap.from_world(world)
+        self.planner = MissionPlanner(world, task, n_orient=cfg.n_orient)
+        self.task = self.planner.mission
+        self.weights = RotationWeights()
+        self._roads = [_Roads(world.workspace, r, cfg.buffer, known_obs)]
+        if cfg.fallback_buffer < cfg.buffer and cfg.fallback_buffer >= 0:
+            self._roads.append(_Roads(world.workspace, r, cfg.fallback_buffer, known_obs))
+        self._known_letters = None
+        # transitions: key (region a, region b) sorted -> tree or error; "@start" legs separately
+        self._pair: dict[tuple[str, str], object] = {}
+        self._start_pair: dict[str, object] = {}
+        self.events = sorted(world.events, key=lambda e: e.time)
+        self._next_event = 0
+        self.state = ExecutiveState.IDLE
+        self.plan: Plan | None = None
+        self.target: str | None = None
+        self.leg: tuple = ()
+        self.wp = 0
+        self._fields: dict = {}
+        self._need_plan = True
+        start = np.array(world.robot.start[:2])
+        self._inside = {n for n, reg in world.regions.items() if reg.contains(start)}
+        node = self.planner.node.region
+        self._at_region: str | None = node if node in self._inside else None
+        self._arrived = self._at_region is not None
+        #: arrivals at the accepting state of the plan's lasso (recurrent missions)
+        self.accepting_visits = 0
+        self._cosafe = self._universal()
+        self.message = ""
+        self.time = 0.0
+        # measurements
+        self.planning_time = 0.0
+        self.replan_times: list[float] = []
+        self.initial_time: float | None = None
+        self.setup_time = time.perf_counter() - t0
+        self.replans = 0
+        self.visited: list[str] = []
+        self.map_changes = 0
+        self.trees_planned = 0
+
+    # ------------------------------------------------------------------ public
+    def request(self, formula, mode=MissionMode.REPLACE) -> Plan:
+        """Change the mission (``replace`` / ``add`` / ``urgent``); re-plans at the next tick.
+        Raises the planner's errors (the previous mission then stays active)."""
+        plan = self.planner.request(formula, mode)
+        self.task = self.planner.mission
+        self._cosafe = self._universal()
+        self.accepting_visits = 0
+        if self.state in (ExecutiveState.DONE, ExecutiveState.BLOCKED):
+            self.state = ExecutiveState.PLANNING
+        self._need_plan = True
+        return plan
+
+    @property
+    def obstacles(self) -> list[Squircle]:
+        """Current obstacle model: known obstacles and perception estimates."""
+        return list(self.known) + (self.omap.obstacles() if self.omap is not None else [])
+
+    def status(self, stamp: float | None = None) -> dict:
+        """FORMATS.md ``status`` payload."""
+        wp = self.leg[self.wp] if self.leg and self.wp < len(self.leg) else None
+        return {"stamp": self.time if stamp is None else float(stamp), "state": self.state.value,
+                "task": self.task, "plan": self.plan.to_dict() if self.plan is not None else None,
+                "target": self.target, "waypoint": [float(v) for v in wp] if wp is not None else None,
+                "obstacles": len(self.obstacles), "message": self.message}
+
+    def tick(self, pose, scan=None, points=None, now: float | None = None) -> TickResult:
+        """One control period: perception, updates as needed, command (see the module doc)."""
+        t0 = time.perf_counter()
+        replanned = map_changed = False
+        try:
+            stamp, p = _pose3(pose)
+        except TampError as err:
+            return self._stop(ExecutiveState.ERROR, f"bad pose: {err}", t0)
+        self.time = float(now) if now is not None and math.isfinite(float(now)) else (
+            stamp if stamp is not None else self.time)
+        if not self.world.workspace.beta(np.array(p[:2])) < 0:
+            return self._stop(ExecutiveState.ERROR, f"pose ({p[0]:.3f}, {p[1]:.3f}) is outside the workspace "
+                                                    "(lost): stopped", t0)
+        if self.state is ExecutiveState.ERROR:  # a valid pose again: recover
+            self.state, self._need_plan = ExecutiveState.PLANNING, True
+        # mission events
+        while self._next_event < len(self.events) and self.events[self._next_event].time <= self.time:
+            ev = self.events[self._next_event]
+            self._next_event += 1
+            try:
+                self.request(ev.task, ev.mode.value)
+                self._note(f"event at {ev.time:g} s: {ev.mode.value} {ev.task!r}")
+            except TampError as err:
+                self._note(f"event at {ev.time:g} s refused: {err}")
+        # perception
+        if self.omap is not None and (scan is not None or points is not None):
+            try:
+                if scan is not None:
+                    upd = self.omap.update_scan(self._filter_known(scan, p), pose if isinstance(pose, Mapping) else p,
+                                                now=now)
+                else:
+                    upd = self.omap.update_points(points, p, now=now)
+                if upd.changed:
+                    map_changed = True
+                    self._on_map_change(upd)
+            except ScanError as err:
+                self._note(f"input dropped: {err}")
+        # progress: regions entered (the trace of the mission)
+        self._track_regions(p)
+        if self.state is ExecutiveState.DONE:
+            return self._result(0.0, 0.0, t0, replanned, map_changed)
+        if self._need_plan:
+            self._replan(p)
+            replanned = True
+        if self.state is not ExecutiveState.EXECUTING:
+            return self._result(0.0, 0.0, t0, replanned, map_changed)
+        v, w = self._command(p)
+        return self._result(v, w, t0, replanned, map_changed)
+
+    # ------------------------------------------------------------------ helpers: output
+    def _note(self, msg: str) -> None:
+        self.message = msg
+        self.messages.append(f"[{self.time:.1f}] {msg}")
+        log.info("executive: %s", msg)
+
+    def _result(self, v, w, t0, replanned, map_changed) -> TickResult:
+        v, w = float(v), float(w)
+        if not (math.isfinite(v) and math.isfinite(w)):
+            v, w = 0.0, 0.0
+        v = min(max(v, -self.control.v_max), self.control.v_max)
+        w = min(max(w, -self.control.omega_max), self.control.omega_max)
+        return TickResult(v, w, self.status(), replanned, map_changed, time.perf_counter() - t0)
+
+    def _stop(self, state, msg, t0) -> TickResult:
+        self.state = state
+        self._note(msg)
+        return self._result(0.0, 0.0, t0, False, False)
+
+    # ------------------------------------------------------------------ perception
+    def _filter_known(self, scan, p):
+        """Beams whose return lies on a known obstacle become NaN (no return, no free evidence)."""
+        if self._known_rows is None or not isinstance(scan, Mapping):
+            return scan
+        try:
+            ranges = np.asarray(scan["ranges"], dtype=float)
+            a = p[2] + float(scan["angle_min"]) + float(scan["angle_increment"]) * np.arange(len(ranges))
+        except (KeyError, TypeError, ValueError):
+            return scan  # let perception reject it with its message
+        hit = np.isfinite(ranges) & (ranges < float(scan.get("range_max", np.inf)))
+        x = p[0] + ranges * np.cos(a)
+        y = p[1] + ranges * np.sin(a)
+        on = np.zeros(len(ranges), bool)
+        if hit.any():
+            b = beta_rows(self._known_rows[:, None, :], x[hit][None, :], y[hit][None, :])
+            on[hit] = (b <= 0).any(axis=0)
+        if not on.any():
+            return scan
+        out = dict(scan)
+        out["ranges"] = np.where(on, np.nan, ranges).tolist()
+        return out
+
+    def _on_map_change(self, upd) -> None:
+        """Forest, fields, roadmaps and tree validity after a map update (section 4.2)."""
+        t0 = time.perf_counter()
+        self.map_changes += 1
+        est = self.omap.estimates
+        try:
+            self.forest = build_forest(self.cspace_workspace, self._known_inflated + self.omap.inflated(),
+                                       min_gap=self.omap.config.min_gap, min_overlap=self.omap.config.min_overlap)
+            self._fields.clear()
+        except ForestError as err:
+            self._note(f"obstacle model refused by the forest construction ({err}); keeping the last forest")
+        changed = [est[i].squircle for i in upd.added + upd.updated if i in est]
+        stale = len(upd.updated) + len(upd.removed)
+        for roads in self._roads:
+            roads.add(changed, stale)
+            if roads.stale > self.config.rebuild_after:
+                roads.reset(self.obstacles)
+        if changed:
+            rows = pack([inflate(s, self.radius + self.config.check_margin) for s in changed])
+            # the current leg, from the waypoint being tracked on
+            if self.leg and self.state is ExecutiveState.EXECUTING:
+                pts = np.array([w[:2] for w in self.leg[max(self.wp - 1, 0):]])
+                if len(pts) >= 2 and not segments_clear(rows, pts[:-1], pts[1:]).all():
+                    self._need_plan = True
+            # evaluated transitions whose trees are hit lose their evaluation
+            for store in (self._pair, self._start_pair):
+                for key, tree in list(store.items()):
+                    if isinstance(tree, Exception):
+                        continue
+                    pts = tree.positions
+                    if len(pts) >= 2 and not segments_clear(rows, pts[:-1], pts[1:]).all():
+                        del store[key]
+                        self._need_plan = True
+        if stale or self.state is ExecutiveState.BLOCKED:
+            # shapes shrank or moved: blocked transitions may have reopened
+            blocked = [k for k, t in self._pair.items() if isinstance(t, Exception)]
+            for k in blocked:
+                del self._pair[k]
+                self.planner.restore_edge(*k)
+            if self.state is ExecutiveState.BLOCKED:
+                for roads in self._roads:
+                    if roads.stale:
+                        roads.reset(self.obstacles)
+                self._need_plan = True
+        self._map_time = time.perf_counter() - t0
+
+    # ------------------------------------------------------------------ progress
+    def _universal(self):
+        b = self.planner.automaton
+        if b is None:
+            return frozenset()
+        return ops.universal_states(b, ops.singleton_letters(b, self.planner.navmap.regions))
+
+    def _mission_done(self) -> bool:
+        if self.planner.pending_urgent:
+            return False
+        states = {q for _, q in self.planner.current}
+        return bool(states & self._cosafe)
+
+    def _track_regions(self, p) -> None:
+        q = np.array(p[:2])
+        now_inside = {n for n, reg in self.world.regions.items() if reg.contains(q)}
+        entered = now_inside - self._inside
+        self._inside = now_inside
+        for name in sorted(entered, key=lambda n: n != self.target):
+            self.visited.append(name)
+            self._at_region = name
+            self._arrived = True
+            try:
+                self.planner.advance(name)
+            except TampError as err:
+                self._note(f"advance({name}) failed: {err}")
+            if self.state in (ExecutiveState.EXECUTING, ExecutiveState.PLANNING, ExecutiveState.IDLE):
+                self._need_plan = True
+        if self._at_region is not None and self._at_region not in now_inside:
+            self._at_region = None
+
+    # ------------------------------------------------------------------ planning
+    def _tree(self, start, goal):
+        """Harmonic tree on the first roadmap that has a path; the last error otherwise."""
+        err = None
+        for roads in self._roads:
+            try:
+                self.trees_planned += 1
+                return plan_tree(roads.current(), start, goal, self.weights, self.config.n_headings)
+            except NoTreePathError as e:
+                err = e
+                if e.reason is not TreeFailure.DISCONNECTED and roads is self._roads[-1]:
+                    break
+        return err
+
+    def _center_pose(self, a, b):
+        ca, cb = self.world.regions[a].center, self.world.regions[b].center
+        h = math.atan2(cb[1] - ca[1], cb[0] - ca[0])
+        return (ca[0], ca[1], h), (cb[0], cb[1], h)
+
+    def _evaluate(self, u: Node, v: Node, p) -> bool:
+        """Harmonic tree of the transition ``u -> v`` (regions); sets its map cost or removes
+        it. Returns True when something was evaluated."""
+        a, b = u.region, v.region
+        if a == b:
+            return False
+        nm = self.planner.navmap
+        if a == START:
+            if b in self._start_pair:
+                return False
+            c = self.world.regions[b].center
+            goal = (c[0], c[1], math.atan2(c[1] - p[1], c[0] - p[0]))
+            res = self._tree(p, goal)
+            self._start_pair[b] = res
+            if isinstance(res, Exception):
+                nm.remove_edge(Node(START, 0), b, symmetric=False)
+            else:
+                # region name: the tree cost is the translational part, w |dtheta| is added
+                nm.set_cost(Node(START, 0), b, res.cost, symmetric=False)
+            return True
+        key = (a, b) if a < b else (b, a)
+        if key in self._pair:
+            return False
+        s, g = self._center_pose(*key)
+        res = self._tree(s, g)
+        self._pair[key] = res
+        if isinstance(res, Exception):
+            nm.remove_edge(key[0], key[1])
+        else:
+            nm.set_cost(key[0], key[1], res.cost)
+        return True
+
+    def _replan(self, p) -> None:
+        """Lazy re-planning from the current state (section 4.2.4) and the next leg."""
+        t0 = time.perf_counter()
+        self._need_plan = False
+        self.replans += 1
+        prev_target = self.target
+        try:
+            self._plan_lazily(p)
+        finally:
+            dt = time.perf_counter() - t0
+            self.planning_time += dt
+            if self.initial_time is None:
+                self.initial_time = dt + self.setup_time
+                self.planning_time += self.setup_time
+            else:
+                self.replan_times.append(dt)
+        if self.state is ExecutiveState.EXECUTING and self.target != prev_target:
+            log.info("executive: next region %s", self.target)
+
+    def _plan_lazily(self, p) -> None:
+        if self._mission_done():
+            self.state, self.leg, self.target = ExecutiveState.DONE, (), None
+            self._note("mission completed")
+            return
+        planner = self.planner
+        if self._at_region is None or planner.node.region != self._at_region:
+            planner.set_position(p)
+            self._start_pair.clear()
+        blocked_once = False
+        for _ in range(self.config.max_plan_rounds):
+            try:
+                plan = planner.plan()
+            except NoPlanError as err:
+                if not blocked_once and any(r.stale or r.pending for r in self._roads):
+                    # stale shapes may close a passage: rebuild from the current model, retry
+                    blocked_once = True
+                    for roads in self._roads:
+                        roads.reset(self.obstacles)
+                    for k in [k for k, t in self._pair.items() if isinstance(t, Exception)]:
+                        del self._pair[k]
+                        planner.restore_edge(*k)
+                    self._start_pair.clear()
+                    if planner.node.region == START:
+                        planner.set_position(p)
+                    continue
+                self._blocked(err)
+                return
+            route = (planner.node,) + plan.route + (plan.suffix[1:] if len(plan.suffix) > 1 else ())
+            evaluated = False
+            for u, v in zip(route[:-1], route[1:]):
+                evaluated |= self._evaluate(u, v, p)
+            if not evaluated:
+                break
+        self.plan = plan
+        # a recurrent mission counts one accepting visit each time the robot arrives at the
+        # lasso's accepting state (the prefix is just the current node)
+        if self._arrived and len(plan.prefix) == 1 and not plan.urgent:
+            self.accepting_visits += 1
+        self._arrived = False
+        target = next((n.region for n in plan.route + plan.suffix if n.region != planner.node.region), None)
+        if target is None:
+            self.state, self.leg, self.target = ExecutiveState.DONE, (), None
+            self._note("mission completed (nothing left to visit)")
+            return
+        self._set_leg(p, target)
+
+    def _set_leg(self, p, target) -> None:
+        c = self.world.regions[target].center
+        goal = (c[0], c[1], math.atan2(c[1] - p[1], c[0] - p[0]))
+        res = self._start_pair.get(target)
+        if res is None or isinstance(res, Exception) or self._at_region is not None:
+            res = self._tree(p, goal)
+        if isinstance(res, NoTreePathError) and res.reason is TreeFailure.START_BLOCKED:
+            # the robot is in the buffer zone of an estimate that the terminal rule cannot
+            # relieve: head for the region directly (the field keeps it safe)
+            wps = (tuple(p), goal)
+        elif isinstance(res, Exception):
+            self._blocked(NoPlanError(f"no harmonic tree from the robot to {target}: {res}", ((START, target),)))
+            return
+        else:
+            wps = tuple(tuple(float(x) for x in w) for w in res.waypoints)
+        # the robot arrives along the last segment (see the module doc)
+        if len(wps) >= 2:
+            (x0, y0, _), (x1, y1, _) = wps[-2], wps[-1]
+            wps = wps[:-1] + ((x1, y1, math.atan2(y1 - y0, x1 - x0)),)
+        self.leg = wps
+        self.wp = 1 if len(wps) > 1 else 0
+        self.target = target
+        if self.state is not ExecutiveState.EXECUTING:
+            self._note(f"executing: next region {target}")
+        self.state = ExecutiveState.EXECUTING
+
+    def _blocked(self, err: NoPlanError) -> None:
+        pairs = getattr(err, "blocked", ()) or ()
+        names = sorted({b for a, b in pairs if b != START} | {a for a, b in pairs if a != START})
+        unreachable = sorted({k for k, t in self._start_pair.items() if isinstance(t, Exception)}
+                             | {n for k, t in self._pair.items() if isinstance(t, Exception) for n in k})
+        names = names or unreachable
+        self.state, self.leg, self.target = ExecutiveState.BLOCKED, (), None
+        self._note(f"blocked: cannot reach region(s) {', '.join(names) if names else '?'} "
+                   f"with the obstacles seen so far; stopped ({err})")
+
+    # ------------------------------------------------------------------ control
+    def _field(self, wp) -> OrientedField | None:
+        key = (wp, id(self.forest))
+        f = self._fields.get(key)
+        if f is None:
+            try:
+                f = OrientedField(NavigationFunction(self.forest, goal=wp[:2]), heading=wp[2])
+            except NavigationError as err:
+                self._note(f"waypoint {np.round(wp, 3).tolist()} not in free space ({err}); re-planning")
+                self._need_plan = True
+                return None
+            if len(self._fields) > 64:
+                self._fields.clear()
+            self._fields[key] = f
+        return f
+
+    def _command(self, p) -> tuple[float, float]:
+        q = np.array(p[:2])
+        tol = self.config.waypoint_tolerance
+        while self.wp < len(self.leg) - 1 and np.linalg.norm(q - self.leg[self.wp][:2]) < tol:
+            self.wp += 1
+        cur = self._field(self.leg[self.wp])
+        if cur is None:
+            return 0.0, 0.0
+        fol = self._field(self.leg[self.wp + 1]) if self.wp + 1 < len(self.leg) else None
+        try:
+            cmd = track_waypoints(p, cur, fol, self.control)
+        except NavigationError as err:
+            self._note(f"controller refused the pose: {err}")
+            return 0.0, 0.0
+        return cmd.v, cmd.omega
+
+

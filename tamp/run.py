@@ -1,0 +1,220 @@
+"""End-to-end mission runs: the executive in closed loop with the simulator (issue 6 item 5).
+
+Library: :func:`run_mission`. Command line (FORMATS.md contract)::
+
+    python -m tamp.run WORLD.json [--task FORMULA] [--known] [--seed N] [--max-time S] [--json]
+
+runs the world's mission (obstacles unknown except ``known_obstacles``; ``--known``: all known)
+and prints a summary, or with ``--json`` one JSON object on stdout with ``completed``,
+``collisions``, ``distance``, ``execution_time``, ``planning_time``, ``max_replan_time``,
+``replans``, ``visited``, ``oscillation`` (and extra fields, see :func:`run_mission`). Progress
+(state changes) goes to stderr. Exit 0 when the run worked, whatever the mission's outcome; 2
+with one ``error: ...`` line on stderr for bad arguments, an invalid world or a task the
+planner refuses.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+
+import numpy as np
+
+from navigation.errors import HarmonicTampError
+from navigation.world import World, load_world
+
+from .executive import Executive, ExecutiveConfig, ExecutiveState
+
+__all__ = ["run_mission", "main", "OMEGA_DEADBAND"]
+
+OMEGA_DEADBAND = 0.05  #: |omega| below this (rad/s) does not count for the oscillation measure
+
+
+def _oscillation(omegas, distance: float) -> float:
+    """Sign changes of the commanded turn rate (``|omega| > OMEGA_DEADBAND``) per metre."""
+    w = np.asarray(omegas, dtype=float)
+    s = np.sign(w[np.abs(w) > OMEGA_DEADBAND])
+    flips = int(np.count_nonzero(s[1:] != s[:-1])) if len(s) > 1 else 0
+    return flips / distance if distance > 1e-9 else 0.0
+
+
+def run_mission(world, task: str | None = None, known: bool = False, seed: int = 0, max_time: float = 300.0,
+                config: ExecutiveConfig | None = None, progress=None, record: bool = False) -> dict:
+    """Run ``world``'s mission (or ``task``) in the simulator with the :class:`Executive`.
+
+    Parameters
+    ----------
+    world : World or str
+        A world or a world file / built-in name.
+    task : str, optional
+        LTL mission instead of the world's ``task``.
+    known : bool
+        All obstacles known at start.
+    seed : int
+        Simulator seed (lidar noise).
+    max_time : float
+        Simulated seconds before the run is stopped.
+    progress : callable(str), optional
+        Called with a line on every state or target change.
+    record : bool
+        Also return the trajectory (``"trajectory"``: poses) and commands.
+
+    Returns
+    -------
+    dict
+        FORMATS.md fields ``completed`` (mission done: a co-safe mission accepted for good, a
+        recurrent one after its accepting state was reached twice, i.e. one suffix round),
+        ``collisions`` (simulator contact events), ``distance`` (m), ``execution_time``
+        (simulated s), ``planning_time`` (wall s: initial synthesis + every re-plan),
+        ``max_replan_time`` (wall s), ``replans`` (re-plans after the initial synthesis),
+        ``visited`` (regions entered, in order), ``oscillation`` (sign changes of omega per
+        metre); and ``world``, ``state``, ``message``, ``initial_planning_time``,
+        ``replan_p95``, ``tick_median``, ``tick_p95``, ``tick_max`` (wall s per tick),
+        ``bad_commands`` (non-finite or out-of-limit commands: must be 0), ``min_clearance``,
+        ``map_changes``, ``trees_planned``, ``obstacles`` (estimates at the end), ``messages``.
+
+    Raises
+    ------
+    HarmonicTampError
+        Invalid world (``WorldError``) or a task the planner refuses (``TampError``).
+    """
+    from service.sim import Simulator
+
+    if not isinstance(world, World):
+        world = load_world(world)
+    max_time = float(max_time)
+    if not (math.isfinite(max_time) and max_time > 0):
+        raise ValueError(f"max_time must be a positive number of seconds, got {max_time!r}")
+    cfg = config or ExecutiveConfig()
+    ex = Executive(world, task, known=known, config=cfg)
+    sim = Simulator(world, seed=seed)
+    period = 1.0 / world.lidar.rate_hz
+    next_scan = 0.0
+    ticks, omegas, poses = [], [], []
+    bad = 0
+    last = None
+    blocked_since = None
+    vmax, wmax = ex.control.v_max, ex.control.omega_max
+    completed = False
+    while sim.time < max_time - 1e-9:
+        pose = sim.pose_message()
+        scan = None
+        if sim.time >= next_scan - 1e-9:
+            scan = sim.scan_message()
+            next_scan += period
+        res = ex.tick(pose, scan=scan, now=sim.time)
+        ticks.append(res.compute)
+        v, w = res.v, res.omega
+        if not (math.isfinite(v) and math.isfinite(w) and abs(v) <= vmax + 1e-12 and abs(w) <= wmax + 1e-12):
+            bad += 1
+        key = (res.status["state"], res.status["target"])
+        if progress is not None and key != last:
+            progress(f"[{sim.time:6.1f} s] {key[0]}" + (f" -> {key[1]}" if key[1] else "")
+                     + (f": {res.status['message']}" if res.status["message"] and key[0] != "executing" else ""))
+        last = key
+        if ex.state is ExecutiveState.DONE:
+            completed = True
+            break
+        if not ex._cosafe and ex.accepting_visits >= 2:
+            completed = True
+            break
+        if ex.state is ExecutiveState.BLOCKED:
+            blocked_since = sim.time if blocked_since is None else blocked_since
+            if sim.time - blocked_since >= cfg.blocked_timeout:
+                break
+        else:
+            blocked_since = None
+        if v != 0.0:
+            omegas.append(w)
+        if record:
+            poses.append(tuple(sim.pose))
+        sim.step((v, w))
+    m = sim.metrics
+    rt = ex.replan_times
+    t = np.asarray(ticks) if ticks else np.zeros(1)
+    out = {
+        "world": world.name,
+        "completed": bool(completed),
+        "collisions": len(m.collisions),
+        "distance": float(m.distance),
+        "execution_time": float(sim.time),
+        "planning_time": float(ex.planning_time),
+        "max_replan_time": float(max(rt)) if rt else 0.0,
+        "replans": len(rt),
+        "visited": list(ex.visited),
+        "oscillation": _oscillation(omegas, m.distance),
+        "state": ex.state.value,
+        "message": ex.message,
+        "initial_planning_time": float(ex.initial_time or 0.0),
+        "replan_p95": float(np.percentile(rt, 95)) if rt else 0.0,
+        "tick_median": float(np.median(t)),
+        "tick_p95": float(np.percentile(t, 95)),
+        "tick_max": float(t.max()),
+        "bad_commands": bad,
+        "min_clearance": float(m.min_clearance),
+        "map_changes": ex.map_changes,
+        "trees_planned": ex.trees_planned,
+        "obstacles": len(ex.obstacles),
+        "messages": ex.messages[-20:],
+    }
+    if record:
+        out["trajectory"] = poses
+    return out
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # one line, exit 2 (FORMATS.md), no usage dump
+        raise _Usage(message)
+
+
+class _Usage(Exception):
+    pass
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="python -m tamp.run", formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+                description="Run a world's LTL mission end to end in the simulator (executive + perception "
+                            "+ harmonic trees) and report the outcome.")
+    p.add_argument("world", help="world file (FORMATS.md) or built-in name (simple, office, cluttered20)")
+    p.add_argument("--task", default=None, help="LTL mission over region names instead of the world's task")
+    p.add_argument("--known", action="store_true", help="all obstacles known at start (no discovery)")
+    p.add_argument("--seed", type=int, default=0, help="simulator seed (lidar noise)")
+    p.add_argument("--max-time", type=float, default=300.0, help="simulated seconds before the run stops")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    return p
+
+
+def main(argv=None) -> int:
+    try:
+        args = _parser().parse_args(argv)
+        if not (math.isfinite(args.max_time) and args.max_time > 0):
+            raise _Usage(f"--max-time must be a positive number of seconds, got {args.max_time!r}")
+        world = load_world(args.world)
+        # refuse a bad task before the run starts
+        progress = (lambda line: print(line, file=sys.stderr, flush=True))
+        t0 = time.perf_counter()
+        result = run_mission(world, args.task, args.known, args.seed, args.max_time, progress=progress)
+    except _Usage as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    except (HarmonicTampError, ValueError, OSError) as err:
+        print(f"error: {err}".replace("\n", " "), file=sys.stderr)
+        return 2
+    if args.json:
+        print(json.dumps(result, allow_nan=False, default=float))
+    else:
+        print(f"{result['world']}: completed={result['completed']} collisions={result['collisions']} "
+              f"distance={result['distance']:.2f} m execution={result['execution_time']:.1f} s "
+              f"planning={result['planning_time']:.3f} s (initial {result['initial_planning_time']:.3f} s, "
+              f"{result['replans']} replans, max {result['max_replan_time'] * 1e3:.0f} ms) "
+              f"tick p95={result['tick_p95'] * 1e3:.1f} ms visited={' '.join(result['visited'])} "
+              f"oscillation={result['oscillation']:.2f}/m state={result['state']} "
+              f"(wall {time.perf_counter() - t0:.1f} s)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
