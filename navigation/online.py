@@ -28,7 +28,6 @@ propagates (the caller decides: the perception map repairs, the executive report
 
 from __future__ import annotations
 
-import math
 from collections import OrderedDict
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
@@ -40,6 +39,7 @@ from .forest import NO_PARENT, Forest, build_forest
 from .geometry import Squircle
 from .oriented import OrientedField
 from .potential import NavigationFunction
+from .world import configuration_space
 
 __all__ = ["OnlineWorld", "WorldChange"]
 
@@ -104,16 +104,10 @@ class OnlineWorld:
                  inflation: float = 0.0, min_gap: float = 1e-3, min_overlap: float = 1e-3):
         if not isinstance(workspace, Squircle):
             raise WorldError(f"workspace must be a Squircle, got {type(workspace).__name__}", "workspace")
-        r = float(inflation)
-        if not (math.isfinite(r) and r >= 0):
-            raise WorldError(f"inflation must be a finite number >= 0, got {inflation!r}", "inflation")
+        self._cspace, _ = configuration_space(workspace, (), inflation)
         self.workspace = workspace
-        self.inflation = r
+        self.inflation = float(inflation)
         self._options = {"min_gap": float(min_gap), "min_overlap": float(min_overlap)}
-        try:
-            self._cspace = workspace.grow(-r) if r else workspace
-        except ValueError as err:
-            raise WorldError(f"workspace: cannot shrink by inflation {r:g}: {err}", "workspace") from None
         items = obstacles.items() if isinstance(obstacles, Mapping) else enumerate(obstacles)
         start = {}
         for k, o in items:
@@ -222,7 +216,7 @@ class OnlineWorld:
 
     # ------------------------------------------------------------------ helpers
     def _build(self, obstacles: Mapping[int, Squircle]) -> Forest:
-        grown = [obstacles[k].grow(self.inflation) if self.inflation else obstacles[k] for k in sorted(obstacles)]
+        _, grown = configuration_space(self.workspace, [obstacles[k] for k in sorted(obstacles)], self.inflation)
         return build_forest(self._cspace, grown, **self._options)
 
     @staticmethod

@@ -450,14 +450,28 @@ class World:
         key = (r, tuple(sorted(options.items())))
         cached = self._forests.get(key)
         if cached is None:
-            try:
-                ws = self.workspace.grow(-r) if r else self.workspace
-            except ValueError as err:
-                raise WorldError(f"workspace: cannot shrink by inflation {r:g}: {err}", "workspace") from None
-            obs = [o.grow(r) for o in self.obstacles] if r else list(self.obstacles)
-            cached = build_forest(ws, obs, **options)
+            cached = build_forest(*configuration_space(self.workspace, self.obstacles, r), **options)
             self._forests[key] = cached
         return cached
+
+
+def configuration_space(workspace: Squircle, obstacles, inflation: float) -> tuple[Squircle, list[Squircle]]:
+    """The workspace shrunk and the obstacles grown by ``inflation`` (a disc robot's radius).
+
+    Raises
+    ------
+    WorldError
+        ``inflation`` is not a finite number >= 0 (field ``inflation``), or the workspace is
+        too small to shrink by it (field ``workspace``).
+    """
+    r = _number(inflation, "inflation", nonnegative=True)
+    if not r:
+        return workspace, list(obstacles)
+    try:
+        ws = workspace.grow(-r)
+    except ValueError as err:
+        raise WorldError(f"workspace: cannot shrink by inflation {r:g}: {err}", "workspace") from None
+    return ws, [o.grow(r) for o in obstacles]
 
 
 # ---------------------------------------------------------------------- loading
