@@ -1,0 +1,176 @@
+"""The service's view of the task executive: a small protocol and its adapter.
+
+:class:`~service.node.ServiceNode` drives any object that satisfies :class:`Brain`; it never
+imports the executive itself. :class:`ExecutiveBrain` adapts :class:`tamp.executive.Executive`
+(paper 001 sections 4.1.4 and 4.2) to the protocol.
+
+Calls happen on the node's control thread only (callbacks merely enqueue), so a brain needs no
+locking.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol, runtime_checkable
+
+from navigation.errors import HarmonicTampError, TampError
+
+from .errors import TaskErrorCode, TaskRejected
+from .messages import PointsMsg, PoseMsg, ScanMsg, TaskRequest
+
+__all__ = ["Brain", "BrainTick", "ExecutiveBrain", "task_error_code"]
+
+
+@dataclass(frozen=True, slots=True)
+class BrainTick:
+    """One control period's output.
+
+    Attributes
+    ----------
+    v, omega : float
+        The unicycle command.
+    status : dict
+        The FORMATS.md ``status`` fields (``state``, ``task``, ``plan``, ``target``,
+        ``waypoint``, ``obstacles``, ``message``); the node sets ``stamp``.
+    compute : float
+        Wall seconds the brain spent.
+    map_changed : bool
+        The obstacle estimate changed (the node then publishes ``obstacles``).
+    replanned : bool
+    """
+
+    v: float
+    omega: float
+    status: dict
+    compute: float = 0.0
+    map_changed: bool = False
+    replanned: bool = False
+
+
+@runtime_checkable
+class Brain(Protocol):
+    """What the node needs from a task executive."""
+
+    def tick(self, pose: PoseMsg, *, scan: ScanMsg | None = None, scan_pose: PoseMsg | None = None,
+             points: PointsMsg | None = None, now: float) -> BrainTick:
+        """One control period. ``pose`` is the latest pose; ``scan`` (new since the last tick,
+        or ``None``) was taken at ``scan_pose`` (the received pose nearest its stamp, may be
+        ``pose``); ``points`` likewise; ``now`` is the robot clock (latest pose stamp)."""
+
+    def request_task(self, request: TaskRequest) -> dict:
+        """Apply a mission change; return the plan summary (``status.plan`` shape).
+
+        Raises :class:`~service.errors.TaskRejected` (the running mission then continues)."""
+
+    def status(self) -> dict:
+        """The current ``status`` fields without ticking."""
+
+    def obstacles(self) -> list:
+        """The current obstacle estimate (``Squircle`` objects or squircle dicts)."""
+
+    def summary(self) -> dict:
+        """JSON-safe progress: at least ``completed`` (bool) and ``visited`` (region list)."""
+
+
+def task_error_code(err: BaseException) -> TaskErrorCode:
+    """The contract code for a mission-layer error (``tamp.errors`` types)."""
+    from tamp.errors import InvalidRequestError, LtlSyntaxError, NoPlanError, UnknownRegionError, UnsatisfiableError
+
+    if isinstance(err, LtlSyntaxError):
+        return TaskErrorCode.PARSE_ERROR
+    if isinstance(err, UnknownRegionError):
+        return TaskErrorCode.UNKNOWN_REGION
+    if isinstance(err, (UnsatisfiableError, NoPlanError)):
+        return TaskErrorCode.UNSATISFIABLE
+    if isinstance(err, InvalidRequestError):
+        return TaskErrorCode.INVALID_REQUEST
+    return TaskErrorCode.INVALID_REQUEST
+
+
+def _pose_dict(p: PoseMsg) -> dict:
+    return {"stamp": p.stamp, "x": p.x, "y": p.y, "theta": p.theta}
+
+
+@dataclass
+class ExecutiveBrain:
+    """:class:`Brain` over :class:`tamp.executive.Executive`.
+
+    Parameters
+    ----------
+    world : navigation.World
+    task : str, optional
+        Initial mission (default: the world's ``task``).
+    known : bool
+        All obstacles of ``world`` known at start (no perception).
+    config : tamp.executive.ExecutiveConfig, optional
+
+    Notes
+    -----
+    * A scan is integrated with the pose of its stamp (``scan_pose``); when that is older than
+      the latest pose, the tick that integrates it also computes the command from it (at most
+      one pose period late). The executive pairs a scan with one pose per tick.
+    * ``regions`` in a task request must match the world's regions: the executive has no API to
+      add regions at run time, so new or moved ones are refused with ``invalid_request``.
+    * A mission counts as completed when the executive reports ``done`` (co-safe missions) or,
+      for a recurrent mission, after two arrivals at the accepting state of its lasso (the rule
+      of :func:`tamp.run.run_mission`).
+    """
+
+    world: object
+    task: str | None = None
+    known: bool = False
+    config: object = None
+    _ex: object = field(init=False, repr=False)
+    _ids: int = field(init=False, default=0)
+
+    def __post_init__(self):
+        from tamp.executive import Executive
+
+        self._ex = Executive(self.world, self.task, known=self.known, config=self.config)
+
+    @property
+    def executive(self):
+        return self._ex
+
+    def tick(self, pose, *, scan=None, scan_pose=None, points=None, now):
+        ex = self._ex
+        use = scan_pose if (scan is not None and scan_pose is not None) else pose
+        r = ex.tick(_pose_dict(use), scan=scan.message if scan is not None else None,
+                    points=points.points if points is not None else None, now=now)
+        return BrainTick(r.v, r.omega, dict(r.status), r.compute, r.map_changed, r.replanned)
+
+    def request_task(self, request: TaskRequest) -> dict:
+        for name, reg in request.regions.items():
+            known = self.world.regions.get(name)
+            if known is None or tuple(known.center) != tuple(reg.center) or known.radius != reg.radius:
+                raise TaskRejected(TaskErrorCode.INVALID_REQUEST,
+                                   f"task.regions.{name}: adding or moving regions at run time is not supported; "
+                                   f"known regions: {', '.join(sorted(self.world.regions))}")
+        try:
+            plan = self._ex.request(request.formula, request.mode)
+        except TampError as err:
+            raise TaskRejected(task_error_code(err), str(err)) from None
+        except HarmonicTampError as err:  # any other refusal of the product
+            raise TaskRejected(TaskErrorCode.INVALID_REQUEST, str(err)) from None
+        return plan.to_dict()
+
+    def status(self) -> dict:
+        return self._ex.status()
+
+    def obstacles(self) -> list:
+        return self._ex.obstacles
+
+    def summary(self) -> dict:
+        from tamp.executive import ExecutiveState
+
+        ex = self._ex
+        done = ex.state is ExecutiveState.DONE
+        recurrent_done = not ex._cosafe and ex.accepting_visits >= 2
+        return {"completed": bool(done or recurrent_done), "state": ex.state.value, "task": ex.task,
+                "visited": list(ex.visited), "replans": ex.replans, "planning_time": ex.planning_time,
+                "max_replan_time": max(ex.replan_times, default=0.0), "obstacles": len(ex.obstacles),
+                "map_changes": ex.map_changes}
+
+    def leg(self):
+        """Waypoints of the current leg ``(K, 3)`` and the index of the current one (for Rerun)."""
+        return list(self._ex.leg), self._ex.wp

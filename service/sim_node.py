@@ -1,0 +1,190 @@
+"""The simulator as a separate bus participant (``tamp-service demo`` runs it in a child process).
+
+:class:`SimNode` wraps a :class:`service.sim.Simulator` and speaks only Zenoh: it subscribes to
+``<prefix>/cmd_vel`` and publishes ``<prefix>/pose`` every step and ``<prefix>/scan`` (or
+``<prefix>/points`` with ``points=True``) at the lidar rate, all stamped with simulated time.
+It also publishes ``<prefix>/sim/metrics`` (not part of the contract: the simulator's
+:class:`~service.sim.SimMetrics` plus the true pose, once a second) for the demo's summary.
+
+Steps run every ``dt / speed`` wall seconds. The last valid command is held; a malformed
+``cmd_vel`` is dropped (logged), and with no ``cmd_vel`` for ``cmd_timeout`` wall seconds the
+robot is stopped (as a real base's own watchdog would).
+
+Command line (used by the demo)::
+
+    python -m service.sim_node --world simple --connect tcp/127.0.0.1:7447 [--speed 1] [--seed 0]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import signal
+import sys
+import threading
+import time
+from collections import deque
+from dataclasses import dataclass
+
+import zenoh
+
+from .errors import ServiceError
+from .messages import encode
+from .node import zenoh_config
+from .sim import CommandError, Simulator
+
+__all__ = ["SimNode", "SimNodeConfig", "main"]
+
+log = logging.getLogger("service.sim_node")
+_JSON = zenoh.Encoding.APPLICATION_JSON
+
+
+@dataclass(frozen=True, slots=True)
+class SimNodeConfig:
+    """Settings of a :class:`SimNode`; ``speed`` is simulated seconds per wall second."""
+
+    robot: str = "robot"
+    prefix: str | None = None
+    speed: float = 1.0
+    points: bool = False
+    cmd_timeout: float = 1.0
+    metrics_period: float = 1.0
+    listen: tuple[str, ...] | None = ()
+    connect: tuple[str, ...] | None = None
+    zenoh_config: str | None = None
+
+    def __post_init__(self):
+        for name in ("speed", "cmd_timeout", "metrics_period"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not v > 0 or v == float("inf"):
+                raise ServiceError(f"SimNodeConfig.{name} must be a finite number > 0, got {v!r}")
+
+    @property
+    def key_prefix(self) -> str:
+        return self.prefix if self.prefix is not None else f"tamp/{self.robot}"
+
+    def key(self, name: str) -> str:
+        return f"{self.key_prefix}/{name}"
+
+
+class SimNode:
+    """A :class:`Simulator` on the bus; use with ``with`` and :meth:`run`."""
+
+    def __init__(self, sim: Simulator, config: SimNodeConfig | None = None, *, session=None):
+        self.sim = sim
+        self.config = config or SimNodeConfig()
+        self._own = session is None
+        self._session = session
+        self._cmd: deque = deque(maxlen=1)
+        self._stop = threading.Event()
+        self._last_cmd_rx: float | None = None
+        self.bad_commands = 0
+        rate = float(sim.lidar.rate_hz)
+        self._scan_every = max(1, round(1.0 / (sim.dt * rate)))
+
+    def __enter__(self) -> "SimNode":
+        c = self.config
+        if self._session is None:
+            self._session = zenoh.open(zenoh_config(listen=c.listen, connect=c.connect, config_file=c.zenoh_config))
+        s = self._session
+        self._sub = s.declare_subscriber(c.key("cmd_vel"),
+                                         lambda sample: self._cmd.append((sample.payload.to_bytes(), time.monotonic())))
+        self._pub_pose = s.declare_publisher(c.key("pose"), encoding=_JSON)
+        self._pub_scan = s.declare_publisher(c.key("points" if c.points else "scan"), encoding=_JSON)
+        self._pub_metrics = s.declare_publisher(c.key("sim/metrics"), encoding=_JSON)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for d in (self._sub, self._pub_pose, self._pub_scan, self._pub_metrics):
+            try:
+                d.undeclare()
+            except Exception:
+                pass
+        if self._own:
+            self._session.close()
+
+    def stop(self) -> None:
+        self._stop.set()
+
+    def metrics(self) -> dict:
+        m = self.sim.metrics.to_dict()
+        m.update(pose=list(self.sim.pose), bad_commands=self.bad_commands)
+        return m
+
+    def step(self) -> None:
+        """Apply the newest command, advance one ``dt``, publish pose (and scan)."""
+        sim = self.sim
+        if self._cmd:
+            payload, rx = self._cmd.pop()
+            try:
+                sim.apply_cmd_vel(payload)
+                self._last_cmd_rx = rx
+            except CommandError as err:
+                self.bad_commands += 1
+                log.warning("cmd_vel dropped: %s", err)
+        if self._last_cmd_rx is not None and time.monotonic() - self._last_cmd_rx > self.config.cmd_timeout:
+            sim.set_command(0.0, 0.0)
+            self._last_cmd_rx = None
+        sim.step()
+        self._pub_pose.put(encode(sim.pose_message()))
+        if sim.metrics.steps % self._scan_every == 0:
+            msg = sim.points_message() if self.config.points else sim.scan_message()
+            self._pub_scan.put(encode(msg))
+
+    def run(self, duration: float | None = None) -> None:
+        """Step in real time (times ``speed``) until :meth:`stop` or ``duration`` simulated s."""
+        period = self.sim.dt / self.config.speed
+        nxt = time.monotonic()
+        last_metrics = -1e9
+        t_end = None if duration is None else self.sim.time + duration
+        while not self._stop.is_set() and (t_end is None or self.sim.time < t_end - 1e-9):
+            self.step()
+            now = time.monotonic()
+            if now - last_metrics >= self.config.metrics_period:
+                self._pub_metrics.put(encode(self.metrics()))
+                last_metrics = now
+            nxt += period
+            if nxt < now:
+                nxt = now
+            self._stop.wait(nxt - now)
+        self._pub_metrics.put(encode(self.metrics()))
+
+
+def main(argv=None) -> int:
+    """``python -m service.sim_node``: the simulator alone on the bus (exit 0 on SIGINT/SIGTERM)."""
+    import navigation
+
+    p = argparse.ArgumentParser(prog="python -m service.sim_node", description=__doc__.split("\n\n")[0],
+                                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p.add_argument("--world", default="office", help="world file or built-in name")
+    p.add_argument("--robot", default="robot", help="robot id (key prefix tamp/<robot>)")
+    p.add_argument("--prefix", default=None, help="key prefix (overrides --robot)")
+    p.add_argument("--connect", action="append", default=None, help="Zenoh endpoint to connect to (repeatable)")
+    p.add_argument("--listen", action="append", default=None, help="Zenoh endpoint to listen on (repeatable)")
+    p.add_argument("--zenoh-config", default=None, help="Zenoh JSON5 configuration file")
+    p.add_argument("--speed", type=float, default=1.0, help="simulated seconds per wall second")
+    p.add_argument("--seed", type=int, default=0, help="lidar noise seed")
+    p.add_argument("--points", action="store_true", help="publish 'points' instead of 'scan'")
+    p.add_argument("--duration", type=float, default=None, help="stop after this many simulated seconds")
+    a = p.parse_args(argv)
+    logging.basicConfig(level=logging.WARNING, format="sim: %(message)s")
+    try:
+        world = navigation.load_world(a.world)
+        cfg = SimNodeConfig(robot=a.robot, prefix=a.prefix, speed=a.speed, points=a.points,
+                            listen=tuple(a.listen or ()), connect=tuple(a.connect) if a.connect else None,
+                            zenoh_config=a.zenoh_config)
+        node = SimNode(Simulator(world, seed=a.seed), cfg)
+    except Exception as err:  # HarmonicTampError and file errors: one line, exit 2
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: node.stop())
+    with node:
+        node.run(a.duration)
+    print(json.dumps(node.metrics()), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
