@@ -1,0 +1,273 @@
+"""``tamp-service``: the task-and-motion-planning service on a Zenoh bus.
+
+Subcommands:
+
+* ``run``  serves one robot: subscribes ``scan``/``points``/``pose``, publishes ``cmd_vel``,
+  ``status`` and ``obstacles``, answers ``task`` queries (bus contract: docs/service.md);
+* ``demo`` runs the service together with the simulator as a separate process talking to it
+  only over Zenoh on loopback, shows progress and ends with a summary.
+
+Exit status: 0 when the service ran (and stopped on SIGINT/SIGTERM, ``--duration`` or, for
+``demo``, mission completion), 2 with one ``error: ...`` line on stderr for bad arguments, an
+invalid world or task, or a Zenoh configuration that cannot be opened.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from collections import deque
+from pathlib import Path
+
+__all__ = ["main", "build_parser"]
+
+EPILOG = """environment:
+  RUST_LOG        Zenoh's own log filter (e.g. RUST_LOG=zenoh=info); Zenoh is quiet by default.
+  ZENOH_CONFIG    not read: pass a configuration file with --zenoh-config instead.
+
+keys (prefix tamp/<robot>): scan, points, pose (in); cmd_vel, status, obstacles (out);
+task (queryable); alive (liveliness token). See docs/service.md.
+"""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # one line, exit 2 (the project's CLI contract)
+        self.exit(2, f"error: {message}\n")
+
+
+def _positive(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (v > 0 and v != float("inf")):
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text!r}")
+    return v
+
+
+def _common(p: argparse.ArgumentParser, *, default_world: str | None) -> None:
+    p.add_argument("--world", default=default_world,
+                   help="world file (FORMATS.md) or built-in name (simple, office, cluttered20)")
+    p.add_argument("--task", default=None, help="LTL mission over region names (default: the world's task)")
+    p.add_argument("--known", action="store_true", help="every obstacle of the world is known at start")
+    p.add_argument("--robot", default="robot", help="robot id; keys live under tamp/<robot>")
+    p.add_argument("--prefix", default=None, help="key prefix (overrides tamp/<robot>)")
+    p.add_argument("--listen", action="append", default=None, metavar="ENDPOINT",
+                   help="Zenoh endpoint to listen on (repeatable; default tcp/127.0.0.1:7447 for run, "
+                        "a free loopback port for demo)")
+    p.add_argument("--connect", action="append", default=None, metavar="ENDPOINT",
+                   help="Zenoh endpoint to connect to (repeatable), e.g. a router")
+    p.add_argument("--zenoh-config", default=None, metavar="FILE",
+                   help="Zenoh JSON5 configuration file, used as is (TLS, access control...); "
+                        "--listen/--connect override its endpoints")
+    p.add_argument("--record", default=None, metavar="PATH.rrd", help="write a Rerun recording")
+    p.add_argument("--viewer", default=None, metavar="ADDR",
+                   help="stream to a Rerun viewer over gRPC (HOST:PORT or a rerun+http:// URL), "
+                        "e.g. one started with 'rerun --bind 127.0.0.1 --port 9876'")
+    p.add_argument("--rate", type=_positive, default=10.0, help="control rate (Hz, simulated time for demo)")
+    p.add_argument("--watchdog", type=_positive, default=1.0,
+                   help="seconds without a fresh pose or scan before the robot is stopped (blocked)")
+    p.add_argument("-v", "--verbose", action="store_true", help="log every warning and state change")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    fmt = argparse.ArgumentDefaultsHelpFormatter
+    p = _Parser(prog="tamp-service", description=__doc__.split("\n\n")[0] + " LTL missions for a unicycle "
+                "robot with harmonic navigation functions.", epilog=EPILOG,
+                formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = p.add_subparsers(dest="command", required=True, metavar="{run,demo}", parser_class=_Parser)
+    r = sub.add_parser("run", help="serve a robot on the bus", formatter_class=fmt, epilog=EPILOG,
+                       description="Serve one robot: run the task executive on the bus until SIGINT/SIGTERM "
+                                   "or --duration.")
+    _common(r, default_world=None)
+    r.add_argument("--duration", type=_positive, default=None, help="stop after this many wall seconds")
+    d = sub.add_parser("demo", help="run the service and a simulated robot over Zenoh on loopback",
+                       formatter_class=fmt, epilog=EPILOG,
+                       description="Run the service and the simulator (a child process) over Zenoh on "
+                                   "loopback until the mission completes or --duration, then print a summary.")
+    _common(d, default_world="office")
+    d.add_argument("--duration", type=_positive, default=300.0, help="give up after this many simulated seconds")
+    d.add_argument("--speed", type=_positive, default=1.0, help="simulation speed-up (simulated s per wall s)")
+    d.add_argument("--seed", type=int, default=0, help="lidar noise seed of the simulator")
+    d.add_argument("--json", action="store_true", help="print the summary as one JSON object on stdout")
+    return p
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _setup(a):
+    """World, brain, node config, telemetry; raises HarmonicTampError/OSError on bad input."""
+    import navigation
+
+    from .brain import ExecutiveBrain
+    from .errors import ServiceError, TaskRejected
+    from .node import NodeConfig
+    from .viz import Telemetry
+
+    if a.world is None:
+        raise ServiceError("--world is required for run (a world file or built-in name)")
+    world = navigation.load_world(a.world)
+    try:
+        brain = ExecutiveBrain(world, a.task, known=a.known)
+    except Exception as err:
+        from .brain import task_error_code
+        from navigation.errors import TampError
+
+        if isinstance(err, TampError):
+            raise TaskRejected(task_error_code(err), f"--task: {err}") from None
+        raise
+    return world, brain, NodeConfig, Telemetry
+
+
+def _install_signals(stop) -> None:
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop())
+
+
+def _cmd_run(a) -> int:
+    from .node import ServiceNode
+
+    world, brain, NodeConfig, Telemetry = _setup(a)
+    cfg = NodeConfig(robot=a.robot, prefix=a.prefix, rate=a.rate, watchdog=a.watchdog,
+                     listen=tuple(a.listen) if a.listen else None, connect=tuple(a.connect) if a.connect else None,
+                     zenoh_config=a.zenoh_config)
+    tel = Telemetry.from_options(record=a.record, viewer=a.viewer)
+    tel.log_world(world)
+    node = ServiceNode(brain, cfg, telemetry=tel)
+    _install_signals(node.stop)
+    with node:
+        print(f"tamp-service: serving {cfg.key_prefix} ({world.name}); Ctrl-C to stop", file=sys.stderr, flush=True)
+        node.run(a.duration)
+    print(f"tamp-service: stopped after {node.stats.ticks} ticks", file=sys.stderr)
+    return 0
+
+
+def _repo_root() -> str:
+    return str(Path(__file__).resolve().parent.parent)
+
+
+def _cmd_demo(a) -> int:
+    import numpy as np
+
+    from .node import ServiceNode
+
+    world, brain, NodeConfig, Telemetry = _setup(a)
+    listen = list(a.listen) if a.listen else [f"tcp/127.0.0.1:{_free_port()}"]
+    cfg = NodeConfig(robot=a.robot, prefix=a.prefix, rate=a.rate * a.speed, watchdog=a.watchdog,
+                     listen=tuple(listen), connect=tuple(a.connect) if a.connect else None,
+                     zenoh_config=a.zenoh_config)
+    tel = Telemetry.from_options(record=a.record, viewer=a.viewer)
+    tel.log_world(world, true_obstacles=True)
+    node = ServiceNode(brain, cfg, telemetry=tel)
+    env = dict(os.environ)
+    env["PYTHONPATH"] = _repo_root() + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+    sim_cmd = [sys.executable, "-m", "service.sim_node", "--world", str(a.world), "--prefix", cfg.key_prefix,
+               "--connect", listen[0], "--speed", repr(a.speed), "--seed", str(a.seed),
+               "--duration", repr(a.duration)]
+    metrics: deque = deque(maxlen=1)
+    stopped = threading.Event()
+
+    def stop():
+        stopped.set()
+        node.stop()
+
+    _install_signals(stop)
+    wall0 = time.monotonic()
+    last = [None]
+
+    def progress(n) -> bool:
+        st = n.status or {}
+        key = (st.get("state"), st.get("target"))
+        if key != last[0]:
+            last[0] = key
+            t = n.pose.stamp if n.pose is not None else 0.0
+            print(f"[{t:7.1f} s] {st.get('state')}" + (f" -> {st.get('target')}" if st.get("target") else "")
+                  + (f"  ({st.get('message')})" if a.verbose and st.get("message") else ""), file=sys.stderr, flush=True)
+        if brain.summary()["completed"]:
+            return True
+        if n.pose is not None and n.pose.stamp >= a.duration - 1e-9:
+            return True
+        return sim.poll() is not None
+
+    with node:
+        sub = node.session.declare_subscriber(cfg.key("sim/metrics"), lambda s: metrics.append(s.payload.to_bytes()))
+        sim = subprocess.Popen(sim_cmd, env=env, stdout=subprocess.DEVNULL)
+        try:
+            print(f"tamp-service demo: {world.name}, task {brain.summary()['task']!r}, speed x{a.speed:g}, "
+                  f"bus {listen[0]} prefix {cfg.key_prefix}", file=sys.stderr, flush=True)
+            node.run(a.duration / a.speed + 30.0, until=progress)
+            time.sleep(min(0.5, 2.0 / a.speed))  # let the simulator's last metrics arrive
+        finally:
+            if sim.poll() is None:
+                sim.send_signal(signal.SIGTERM)
+                try:
+                    sim.wait(10)
+                except subprocess.TimeoutExpired:
+                    sim.kill()
+                    sim.wait()
+            sub.undeclare()
+    summary = brain.summary()
+    m = json.loads(metrics[-1]) if metrics else {}
+    ticks = np.asarray(node.stats.tick_times) * 1e3
+    out = {"world": world.name, "task": summary["task"], "completed": summary["completed"],
+           "interrupted": stopped.is_set(), "state": summary["state"], "visited": summary["visited"],
+           "sim_time": m.get("time"), "wall_time": time.monotonic() - wall0, "distance": m.get("distance"),
+           "collisions": len(m.get("collisions", [])) if isinstance(m.get("collisions"), list) else m.get("collisions"),
+           "min_clearance": m.get("min_clearance"), "replans": summary["replans"],
+           "planning_time": summary["planning_time"], "max_replan_time": summary["max_replan_time"],
+           "obstacles": summary["obstacles"], "ticks": node.stats.ticks, "overruns": node.stats.overruns,
+           "tick_p50_ms": float(np.percentile(ticks, 50)) if len(ticks) else None,
+           "tick_p95_ms": float(np.percentile(ticks, 95)) if len(ticks) else None,
+           "warnings": node.stats.warnings, "record": a.record}
+    if a.json:
+        print(json.dumps(out))
+    else:
+        f = lambda x, spec: "-" if x is None else format(x, spec)  # noqa: E731
+        print(f"demo summary ({out['world']}, task {out['task']!r})\n"
+              f"  completed      {out['completed']}{' (interrupted)' if out['interrupted'] else ''} "
+              f"(state {out['state']})\n"
+              f"  visited        {' '.join(out['visited']) or '-'}\n"
+              f"  simulated time {f(out['sim_time'], '.1f')} s in {out['wall_time']:.1f} s wall\n"
+              f"  distance       {f(out['distance'], '.2f')} m, collisions {f(out['collisions'], 'd')}, "
+              f"min clearance {f(out['min_clearance'], '.3f')} m\n"
+              f"  planning       {out['replans']} re-plans, {out['planning_time']:.3f} s total, "
+              f"max re-plan {out['max_replan_time'] * 1e3:.1f} ms\n"
+              f"  control loop   {out['ticks']} ticks, p50 {f(out['tick_p50_ms'], '.1f')} ms, "
+              f"p95 {f(out['tick_p95_ms'], '.1f')} ms, {out['overruns']} overruns, {out['warnings']} input warnings"
+              + (f"\n  recording      {out['record']}" if out["record"] else ""))
+    return 0
+
+
+def main(argv=None) -> int:
+    """Entry point of the ``tamp-service`` console script."""
+    args = build_parser().parse_args(argv)
+    logging.basicConfig(level=logging.INFO if args.verbose else logging.ERROR,
+                        format="%(levelname)s %(name)s: %(message)s")
+    from navigation.errors import HarmonicTampError
+
+    try:
+        return _cmd_run(args) if args.command == "run" else _cmd_demo(args)
+    except (HarmonicTampError, OSError) as err:
+        print(f"error: {err}".splitlines()[0], file=sys.stderr)
+        return 2
+    except Exception as err:  # zenoh.ZError when a session cannot be opened (port in use...)
+        if type(err).__module__.startswith("zenoh"):
+            print(f"error: zenoh: {err}".splitlines()[0], file=sys.stderr)
+            return 2
+        raise
+
+
+if __name__ == "__main__":
+    sys.exit(main())
