@@ -205,7 +205,7 @@ class ServiceNode:
         self._pose: PoseMsg | None = None
         self._poses: deque[PoseMsg] = deque(maxlen=50)
         self._rx = {"pose": None, "sensor": None}
-        self._warning: str | None = None
+        self._warnings: list[str] = []  # this tick's, shown in status.message
         self._blocked: str | None = None
         self._status: dict | None = None
         self._status_sent = (None, -math.inf)  # (content without stamp, monotonic time)
@@ -320,14 +320,14 @@ class ServiceNode:
         if reason is not None:
             self._last_cmd = (0.0, 0.0)
             self._publish_cmd(0.0, 0.0)
-            st = dict(self._status or self._idle_status())
+            st = self._idle_status()
             st["state"], st["message"] = ServiceState.BLOCKED.value, reason
             if self._blocked is None:
                 log.warning("watchdog: %s", reason)
             self._blocked = reason
         elif self._pose is None:  # start-up, within the watchdog time
             self._publish_cmd(0.0, 0.0)
-            st = dict(self._status or self._idle_status())
+            st = self._idle_status()
             st["message"] = "waiting for the first pose"
         else:
             if self._blocked is not None:
@@ -351,10 +351,12 @@ class ServiceNode:
             self._publish_cmd(v, w, pose_stamp=self._pose.stamp, scan_stamp=None if scan is None else scan.stamp)
             if out is not None and (out.map_changed or self.stats.ticks == 0):
                 self._publish_obstacles()
-        if self._warning is not None:
-            st["message"] = f"warning: {self._warning}" + (f"; {st['message']}" if st.get("message") else "")
+        if self._warnings:
+            w = self._warnings
+            text = "; ".join(w[:3]) + (f"; and {len(w) - 3} more" if len(w) > 3 else "")
+            st["message"] = f"warning: {text}" + (f" | {st['message']}" if st.get("message") else "")
         self._publish_status(st)
-        self._warning = None
+        self._warnings = []
         self.stats.ticks += 1
         dt = time.perf_counter() - t_start
         self.stats.tick_times.append(dt)
@@ -365,11 +367,11 @@ class ServiceNode:
     # ------------------------------------------------------------------ inputs
     def _warn(self, msg: str) -> None:
         self.stats.warnings += 1
-        self._warning = msg
+        self._warnings.append(msg)
         log.warning("%s", msg)
 
     def _warn_once(self, msg: str) -> None:
-        self._warning = msg
+        self._warnings.append(msg)
 
     def _fresh(self, key: str, stamp: float) -> bool:
         last = self._last_stamp.get(key)

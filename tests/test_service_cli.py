@@ -1,0 +1,110 @@
+"""``tamp-service``: help, bad arguments, clean shutdown of ``run`` on SIGTERM/SIGINT, and the
+demo mission of simple.json through the bus to completion with a recording read back."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from service.cli import main
+
+from .conftest import ROOT, world_file
+from .service_helpers import Recorder, client, free_port, unique_prefix, wait_for
+
+ENV = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+
+
+def _cli(*args, **kw) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "service.cli", *args], env=ENV, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, **kw)
+
+
+def test_help_documents_every_option(capsys):
+    for sub, extra in (("run", []), ("demo", ["--speed", "--seed", "--json"])):
+        with pytest.raises(SystemExit) as info:
+            main([sub, "--help"])
+        assert info.value.code == 0
+        out = capsys.readouterr().out
+        for opt in ["--world", "--task", "--robot", "--listen", "--connect", "--zenoh-config", "--record",
+                    "--viewer", "--rate", "--duration", "--watchdog", *extra]:
+            assert opt in out, (sub, opt)
+
+
+@pytest.mark.parametrize("argv, needle", [
+    (["run", "--rate", "0"], "--rate"), (["demo", "--speed", "fast"], "--speed"), (["jump"], "invalid choice"),
+    (["run"], "--world"), (["run", "--world", "no/such/world.json"], "no/such"),
+    (["run", "--world", "simple", "--task", "F (a"], "parse_error"),
+    (["run", "--world", "simple", "--zenoh-config", "/no/such.json5"], "--zenoh-config"),
+])
+def test_bad_arguments_give_one_error_line_and_exit_2(argv, needle, capsys):
+    try:
+        code = main(argv)
+    except SystemExit as e:
+        code = e.code
+    err = capsys.readouterr().err
+    assert code == 2
+    assert err.startswith("error: ") and err.count("\n") == 1 and needle in err, err
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+def test_run_stops_cleanly_on_signal(sig):
+    port = free_port()
+    prefix = unique_prefix("cli")
+    proc = _cli("run", "--world", str(world_file("simple")), "--prefix", prefix,
+                "--listen", f"tcp/127.0.0.1:{port}")
+    cl = client(f"tcp/127.0.0.1:{port}")
+    try:
+        assert wait_for(lambda: any(r.ok for r in cl.liveliness().get(f"{prefix}/alive", timeout=1.0)), 20.0)
+        cmd = Recorder(cl, f"{prefix}/cmd_vel")
+        status = Recorder(cl, f"{prefix}/status")
+        assert wait_for(lambda: cmd.last is not None, 5.0)
+        proc.send_signal(sig)
+        out, err = proc.communicate(timeout=15)
+        assert proc.returncode == 0, err
+        assert "Traceback" not in err
+        assert cmd.last["v"] == 0.0 and cmd.last["omega"] == 0.0
+        assert wait_for(lambda: status.last and status.last["message"] == "service stopped", 2.0)
+        assert wait_for(lambda: not any(r.ok for r in cl.liveliness().get(f"{prefix}/alive", timeout=1.0)), 5.0)
+        with socket.socket() as s:  # no listener left on the port (TIME_WAIT pairs are allowed)
+            s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            s.bind(("127.0.0.1", port))
+            s.listen()
+        cmd.close()
+        status.close()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+        cl.close()
+
+
+def test_demo_mission_of_simple_completes_over_the_bus_with_a_recording(tmp_path):
+    rrd = tmp_path / "demo.rrd"
+    proc = _cli("demo", "--world", str(world_file("simple")), "--speed", "4", "--record", str(rrd), "--json",
+                "--duration", "120", "--prefix", unique_prefix("demo"))
+    out, err = proc.communicate(timeout=120)
+    assert proc.returncode == 0, err
+    summary = json.loads(out.strip().splitlines()[-1])
+    assert summary["completed"] is True, (summary, err)
+    assert summary["collisions"] == 0
+    assert summary["visited"][:2] in (["a", "b"], ["b", "a"])
+    # the recording verifies and holds the expected entities
+    rerun = Path(sys.executable).parent / "rerun"
+    verify = subprocess.run([str(rerun) if rerun.exists() else "rerun", "rrd", "verify", str(rrd)],
+                            capture_output=True, text=True, timeout=60)
+    assert verify.returncode == 0, verify.stderr
+    from rerun.chunk import RrdReader
+
+    paths = {str(c.entity_path) for c in RrdReader(str(rrd)).stream().collect().stream()}
+    for p in ("/world/workspace", "/world/regions", "/world/obstacles/true", "/world/obstacles/estimated",
+              "/world/lidar", "/world/robot", "/world/robot/trail", "/world/path", "/world/path/vertices",
+              "/world/goal", "/plots/v", "/plots/omega", "/plots/tick_ms", "/status/state", "/status/plan"):
+        assert p in paths, (p, sorted(paths))
