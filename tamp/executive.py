@@ -119,7 +119,8 @@ class ExecutiveConfig:
         Buffer of the second roadmap a transition is retried on when the first has no path
         (``0`` disables the fallback).
     waypoint_tolerance : float
-        Distance at which the current waypoint counts as passed (m).
+        Distance at which the current waypoint counts as passed (m); above the switch margin
+        of eq. 25 (0.1 m) so that the blend has barely started when the waypoint changes.
     check_margin : float
         A changed obstacle invalidates a tree when one of its segments comes within
         ``robot radius + check_margin`` of it.
@@ -129,6 +130,8 @@ class ExecutiveConfig:
         Orientations per region in the navigation map; headings per roadmap vertex.
     max_plan_rounds : int
         Rounds of lazy evaluation per re-plan (each evaluates the transitions of one plan).
+    stall_ticks : int
+        Ticks without motion after which the executive passes a close waypoint or re-plans.
     blocked_timeout : float
         How long (s) :func:`tamp.run.run_mission` waits in ``blocked`` before giving up
         (the executive itself waits forever).
@@ -136,13 +139,14 @@ class ExecutiveConfig:
 
     buffer: float = 0.15
     fallback_buffer: float = 0.03
-    waypoint_tolerance: float = 0.1
+    waypoint_tolerance: float = 0.15
     check_margin: float = 0.05
     rebuild_after: int = 8
     n_orient: int = 8
     n_headings: int = 8
     max_plan_rounds: int = 40
     blocked_timeout: float = 10.0
+    stall_ticks: int = 20
 
     def __post_init__(self):
         for name in ("buffer", "fallback_buffer", "check_margin", "blocked_timeout"):
@@ -151,7 +155,7 @@ class ExecutiveConfig:
                 raise TampError(f"ExecutiveConfig.{name} must be a finite number >= 0, got {v!r}")
         if not (isinstance(self.waypoint_tolerance, (int, float)) and self.waypoint_tolerance > 0):
             raise TampError(f"ExecutiveConfig.waypoint_tolerance must be > 0, got {self.waypoint_tolerance!r}")
-        for name in ("rebuild_after", "n_orient", "n_headings", "max_plan_rounds"):
+        for name in ("rebuild_after", "n_orient", "n_headings", "max_plan_rounds", "stall_ticks"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:
                 raise TampError(f"ExecutiveConfig.{name} must be a positive int, got {v!r}")
@@ -184,6 +188,7 @@ class _Roads:
 
     def current(self) -> Roadmap:
         if self.rm is None:
+            self.obstacles += self.pending
             self.rm = Roadmap.build(self.workspace, self.obstacles, self.radius, self.config)
             self.pending = []
         elif self.pending:
@@ -298,6 +303,7 @@ class Executive:
         self._fields: dict = {}
         self._need_plan = True
         start = np.array(world.robot.start[:2])
+        self._stalled = 0
         self._inside = {n for n, reg in world.regions.items() if reg.contains(start)}
         node = self.planner.node.region
         self._at_region: str | None = node if node in self._inside else None
@@ -305,6 +311,7 @@ class Executive:
         #: arrivals at the accepting state of the plan's lasso (recurrent missions)
         self.accepting_visits = 0
         self._cosafe = self._universal()
+        self.unreachable: tuple[str, ...] = ()  #: regions named by the last blocked report
         self.message = ""
         self.time = 0.0
         # measurements
@@ -607,7 +614,7 @@ class Executive:
                     if planner.node.region == START:
                         planner.set_position(p)
                     continue
-                self._blocked(err)
+                self._blocked(err, p)
                 return
             route = (planner.node,) + plan.route + (plan.suffix[1:] if len(plan.suffix) > 1 else ())
             evaluated = False
@@ -639,32 +646,52 @@ class Executive:
             # relieve: head for the region directly (the field keeps it safe)
             wps = (tuple(p), goal)
         elif isinstance(res, Exception):
-            self._blocked(NoPlanError(f"no harmonic tree from the robot to {target}: {res}", ((START, target),)))
+            self._blocked(NoPlanError(f"no harmonic tree from the robot to {target}: {res}", ((START, target),)), p)
             return
         else:
             wps = tuple(tuple(float(x) for x in w) for w in res.waypoints)
-        # the robot arrives along the last segment (see the module doc)
-        if len(wps) >= 2:
-            (x0, y0, _), (x1, y1, _) = wps[-2], wps[-1]
-            wps = wps[:-1] + ((x1, y1, math.atan2(y1 - y0, x1 - x0)),)
+            # intermediate waypoints must lie in the forest's free space (the roadmap grows
+            # obstacles by Squircle.grow, the forest by perception.inflate: they can differ
+            # at the fallback buffer); drop those that do not, the field goes around
+            wps = (wps[0],) + tuple(w for w in wps[1:-1] if self._free(w)) + (wps[-1],)
+        # headings: the robot arrives at the goal along the last segment and passes an
+        # intermediate waypoint along the bisector of its two segments (see the module doc)
+        wps = _pass_through_headings(wps)
         self.leg = wps
         self.wp = 1 if len(wps) > 1 else 0
+        self._stalled = 0
         self.target = target
         if self.state is not ExecutiveState.EXECUTING:
             self._note(f"executing: next region {target}")
         self.state = ExecutiveState.EXECUTING
 
-    def _blocked(self, err: NoPlanError) -> None:
+    def _blocked(self, err: NoPlanError, p=None) -> None:
+        """Stop and report the regions the robot cannot reach (section 4.2.4 / issue 6)."""
         pairs = getattr(err, "blocked", ()) or ()
-        names = sorted({b for a, b in pairs if b != START} | {a for a, b in pairs if a != START})
-        unreachable = sorted({k for k, t in self._start_pair.items() if isinstance(t, Exception)}
-                             | {n for k, t in self._pair.items() if isinstance(t, Exception) for n in k})
-        names = names or unreachable
+        names = sorted({n for pair in pairs for n in pair if n != START})
+        if p is not None and names:
+            unreachable = []
+            for n in names:
+                res = self._start_pair.get(n)
+                if res is None:
+                    c = self.world.regions[n].center
+                    res = self._tree(p, (c[0], c[1], math.atan2(c[1] - p[1], c[0] - p[0])))
+                if isinstance(res, Exception):
+                    unreachable.append(n)
+            names = unreachable or names
         self.state, self.leg, self.target = ExecutiveState.BLOCKED, (), None
+        self.unreachable = tuple(names)
         self._note(f"blocked: cannot reach region(s) {', '.join(names) if names else '?'} "
                    f"with the obstacles seen so far; stopped ({err})")
 
     # ------------------------------------------------------------------ control
+    def _free(self, wp) -> bool:
+        f = self.forest
+        x, y = np.array([wp[0]]), np.array([wp[1]])
+        if not beta_rows(pack([f.workspace]), x, y)[0] < 0:
+            return False
+        return not len(f.obstacles) or bool((beta_rows(pack(f.obstacles), x, y) > 0).all())
+
     def _field(self, wp) -> OrientedField | None:
         key = (wp, id(self.forest))
         f = self._fields.get(key)
@@ -694,6 +721,41 @@ class Executive:
         except NavigationError as err:
             self._note(f"controller refused the pose: {err}")
             return 0.0, 0.0
+        # stall guard: the blend of eq. 25 can cancel (the current waypoint's field asks to
+        # swing around it, the following one to go on); after ``stall_ticks`` ticks without
+        # motion move on to the next waypoint when close to the current one, else re-plan
+        if abs(cmd.v) < 1e-3 and abs(cmd.omega) < 1e-2:
+            self._stalled += 1
+            if self._stalled >= self.config.stall_ticks:
+                self._stalled = 0
+                d = float(np.linalg.norm(q - self.leg[self.wp][:2]))
+                if self.wp < len(self.leg) - 1 and d < 3 * tol:
+                    self.wp += 1
+                    self._note(f"stalled {d:.2f} m from a waypoint: passing it")
+                else:
+                    self._need_plan = True
+                    self._note("stalled: re-planning from here")
+        else:
+            self._stalled = 0
         return cmd.v, cmd.omega
+
+
+def _pass_through_headings(wps):
+    """Goal heading along the last segment; intermediate headings along the bisector of the
+    incoming and outgoing segments; the start pose unchanged."""
+    if len(wps) < 2:
+        return tuple(wps)
+    out = [wps[0]]
+    for k in range(1, len(wps)):
+        (x0, y0, _), (x1, y1, _) = wps[k - 1], wps[k]
+        a_in = math.atan2(y1 - y0, x1 - x0)
+        if k == len(wps) - 1:
+            h = a_in
+        else:
+            x2, y2, _ = wps[k + 1]
+            a_out = math.atan2(y2 - y1, x2 - x1)
+            h = math.atan2(math.sin(a_in) + math.sin(a_out), math.cos(a_in) + math.cos(a_out))
+        out.append((x1, y1, h))
+    return tuple(out)
 
 
