@@ -200,6 +200,7 @@ class ServiceNode:
         self._queries: deque = deque()
         self._declared: list = []
         self._stop = threading.Event()
+        self._wake = threading.Event()  # set by scan/points arrivals and stop()
         self.stats = _Stats()
         self._last_stamp: dict[str, float] = {}
         self._pose: PoseMsg | None = None
@@ -250,14 +251,19 @@ class ServiceNode:
     def _enqueue(self, name: str):
         box = self._inbox[name]
 
-        def callback(sample, _box=box, _name=name):  # Zenoh thread: enqueue only
+        wake = self._wake if name in ("scan", "points") else None
+
+        def callback(sample, _box=box, _wake=wake):  # Zenoh thread: enqueue only
             _box.append((sample.payload.to_bytes(), time.monotonic()))
+            if _wake is not None:
+                _wake.set()
 
         return callback
 
     def stop(self) -> None:
         """Ask :meth:`run` to return (thread- and signal-safe)."""
         self._stop.set()
+        self._wake.set()
 
     def close(self) -> None:
         """Publish a zero command and a final status, undeclare everything, close the session."""
@@ -291,23 +297,28 @@ class ServiceNode:
 
     # ------------------------------------------------------------------ loop
     def run(self, duration: float | None = None, *, until=None) -> None:
-        """Run the control loop at ``config.rate`` Hz until :meth:`stop`, ``duration`` wall
-        seconds, or ``until(node)`` returning true (checked after every tick)."""
+        """Run the control loop until :meth:`stop`, ``duration`` wall seconds, or
+        ``until(node)`` returning true (checked after every tick).
+
+        A tick runs every ``1 / config.rate`` s, and also as soon as a scan or points message
+        arrives (so a command answers a scan within one tick's compute time); the periodic
+        schedule restarts after such a tick."""
         period = 1.0 / self.config.rate
         start = time.monotonic()
         nxt = start
         while not self._stop.is_set():
+            self._wake.clear()
+            t0 = time.monotonic()
             self.step()
             if until is not None and until(self):
                 break
             now = time.monotonic()
             if duration is not None and now - start >= duration:
                 break
-            nxt += period
-            if nxt < now:  # overrun: do not try to catch up
+            if now - t0 > period:
                 self.stats.overruns += 1
-                nxt = now
-            self._stop.wait(nxt - now)
+            nxt = t0 + period if t0 + period > now else now
+            self._wake.wait(max(0.0, nxt - now))
 
     def step(self) -> BrainTick | None:
         """One control period (normally called by :meth:`run`)."""
