@@ -15,3 +15,6 @@ from .roadmap import Roadmap, RoadmapConfig
 
 __all__ = ["MissionPlanner", "MissionMode", "Plan", "HarmonicTree", "NoTreePathError", "RotationWeights",
            "plan_tree", "revise_trees", "Roadmap", "RoadmapConfig"]
+from .executive import Executive, ExecutiveConfig, ExecutiveState  # noqa: E402
+
+__all__ += ["Executive", "ExecutiveConfig", "ExecutiveState"]  # tamp.run stays a module (python -m tamp.run)
