@@ -269,6 +269,8 @@ class Executive:
         self.control = ControllerConfig.from_robot(world.robot)
         self.cspace_workspace = world.workspace.grow(-r) if r > 0 else world.workspace
         self.messages: list[str] = []
+        self.message = ""
+        self.time = 0.0
         idx = range(len(world.obstacles)) if known else world.known_obstacles
         known_obs = [world.obstacles[i] for i in idx]
         self._known_inflated = [inflate(o, r) for o in known_obs]

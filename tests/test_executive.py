@@ -185,3 +185,13 @@ def test_cli_json_contract_and_errors(tmp_path):
 def test_main_returns_two_on_bad_arguments(capsys):
     assert main(["--no-such-option"]) == 2
     assert capsys.readouterr().err.startswith("error: ")
+
+
+def test_known_obstacles_that_are_not_a_forest_are_left_to_perception():
+    # cluttered20 grown by the robot radius: obstacles 0, 1, 2 overlap in a cycle
+    ex = Executive(shared_world("cluttered20"), known=True)
+    assert any("not a forest of stars" in m for m in ex.messages), ex.messages
+    assert ex.known == [] and ex.omap is not None
+    # all obstacles of simple are a forest: no perception at all
+    ex = Executive(shared_world("simple"), known=True)
+    assert len(ex.known) == 4 and ex.omap is None
