@@ -6,9 +6,13 @@
 It also publishes ``<prefix>/sim/metrics`` (not part of the contract: the simulator's
 :class:`~service.sim.SimMetrics` plus the true pose, once a second) for the demo's summary.
 
-Steps run every ``dt / speed`` wall seconds. The last valid command is held; a malformed
-``cmd_vel`` is dropped (logged), and with no ``cmd_vel`` for ``cmd_timeout`` wall seconds the
-robot is stopped (as a real base's own watchdog would).
+Steps run every ``dt / speed`` wall seconds. A malformed ``cmd_vel`` is dropped (logged). A
+valid command is executed for at most ``cmd_timeout`` *simulated* seconds (default 0.1 s, the
+controller's safety horizon ``ControllerConfig.safety_horizon``); with no newer command by then
+the robot stops, as a real base's own command watchdog does. The controller's speed limit
+``v <= clearance / safety_horizon`` is only a no-contact certificate when no command runs longer
+than the horizon: a service that falls behind (slow ticks, a sped-up simulation) makes the robot
+wait instead of driving on a stale command.
 
 Command line (used by the demo)::
 
@@ -48,7 +52,7 @@ class SimNodeConfig:
     prefix: str | None = None
     speed: float = 1.0
     points: bool = False
-    cmd_timeout: float = 1.0
+    cmd_timeout: float = 0.1
     metrics_period: float = 1.0
     listen: tuple[str, ...] | None = ()
     connect: tuple[str, ...] | None = None
@@ -78,7 +82,7 @@ class SimNode:
         self._session = session
         self._cmd: deque = deque(maxlen=1)
         self._stop = threading.Event()
-        self._last_cmd_rx: float | None = None
+        self._last_cmd_t: float | None = None  # simulated time the current command was applied
         self.bad_commands = 0
         rate = float(sim.lidar.rate_hz)
         self._scan_every = max(1, round(1.0 / (sim.dt * rate)))
@@ -119,13 +123,13 @@ class SimNode:
             payload, rx = self._cmd.pop()
             try:
                 sim.apply_cmd_vel(payload)
-                self._last_cmd_rx = rx
+                self._last_cmd_t = sim.time
             except CommandError as err:
                 self.bad_commands += 1
                 log.warning("cmd_vel dropped: %s", err)
-        if self._last_cmd_rx is not None and time.monotonic() - self._last_cmd_rx > self.config.cmd_timeout:
+        if self._last_cmd_t is not None and sim.time - self._last_cmd_t >= self.config.cmd_timeout - 1e-9:
             sim.set_command(0.0, 0.0)
-            self._last_cmd_rx = None
+            self._last_cmd_t = None
         sim.step()
         self._pub_pose.put(encode(sim.pose_message()))
         if sim.metrics.steps % self._scan_every == 0:
