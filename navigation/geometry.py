@@ -254,9 +254,12 @@ class Squircle:
         """A squircle that contains this one grown by ``r`` (``r > 0``, robot inflation) or is
         contained in it shrunk by ``-r`` (``r < 0``), with the same centre, rotation and ``s``.
 
-        Extents change by ``2 k r``; ``k >= 1`` is increased until the containment holds at
-        ``samples`` boundary points (it is 1 for ellipses and for rectangles with rounded
-        corners), then a 1e-9 m safety margin is added.
+        Extents change by ``2 k r``; ``k >= 1`` is increased until the inner shape's offset
+        curve at distance ``|r|`` (``samples`` boundary points moved ``|r|`` along their outward
+        normals) lies inside the outer shape: for convex shapes that is the containment of the
+        Minkowski sum with the disc of radius ``|r|``, i.e. every point within ``|r|`` of the
+        inner shape is in the outer one (``k`` is 1 for ellipses and for rectangles with
+        rounded corners); a 1e-9 m safety margin is added.
 
         The result is memoised per ``(squircle, r, samples)`` (the map grows the same estimates
         again and again).
@@ -273,6 +276,13 @@ class Squircle:
             return self
         return _grow(self, r, int(samples))
 
+    def offset_points(self, r: float, n: int = 256) -> np.ndarray:
+        """``n`` boundary points moved ``r`` along their outward unit normals (the offset curve
+        at distance ``r``; for ``r > 0`` exactly ``r`` from the squircle), shape ``(n, 2)``."""
+        b = self.boundary_points(n)
+        g = self.gradient(b)
+        return b + r * g / np.linalg.norm(g, axis=1, keepdims=True)
+
     def _grow_uncached(self, r: float, samples: int) -> "Squircle":
         if r < 0 and -2 * r >= min(self.width, self.height):
             raise ValueError(f"cannot shrink a {self.width} x {self.height} squircle by {-r}")
@@ -282,11 +292,8 @@ class Squircle:
             cand = Squircle(self.center, self.width + ext, self.height + ext, self.theta, self.s)
             if cand.width <= 0 or cand.height <= 0:
                 raise ValueError(f"cannot shrink a {self.width} x {self.height} squircle by {-r}")
-            if r > 0:
-                ok = np.all(self.distance(cand.boundary_points(samples)) >= r)
-            else:
-                ok = np.all(cand.distance(self.boundary_points(samples)) >= -r)
-            if ok:
+            inner, outer = (self, cand) if r > 0 else (cand, self)
+            if np.all(outer.beta(inner.offset_points(abs(r), samples)) <= 0.0):
                 return cand
             k *= 1.05
         raise ValueError(f"could not grow squircle by {r}")  # pragma: no cover
