@@ -427,6 +427,157 @@ def _merge_parts(points: np.ndarray, parts: list[np.ndarray], cfg: PerceptionCon
     return parts
 
 
+def _components(points: np.ndarray, link: float) -> list[np.ndarray]:
+    """Index sets of the connected components of ``points`` (pairs closer than ``link``)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    n = len(points)
+    pairs = cKDTree(points).query_pairs(link, output_type="ndarray")
+    if not len(pairs):
+        return [np.array([i]) for i in range(n)]
+    g = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    _, lab = connected_components(g, directed=False)
+    order = np.argsort(lab, kind="stable")
+    return np.split(order, np.cumsum(np.bincount(lab))[:-1])
+
+
+def _segments(points: np.ndarray, cfg: PerceptionConfig) -> list[np.ndarray]:
+    """Split a cluster at its corners (paper 001 section 4.2.1): index sets of connected runs
+    of points whose local direction (principal axis of the points within ``radius``) is the
+    same modulo 90 degrees. Points at a corner (no dominant direction) join the run of their
+    nearest straight neighbour; runs of fewer than ``min_piece`` points join their nearest run.
+    Faces of one rectangle share the direction modulo 90 degrees; walls meeting at a corner
+    under another angle, and any concave corner, separate runs."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    n = len(points)
+    tree = cKDTree(points)
+    radius = max(0.06, 3 * cfg.voxel) + 3 * cfg.noise_std
+    k = min(n, 12)
+    d, nb = tree.query(points, k=k)
+    w = (d <= radius).astype(float)
+    cnt = w.sum(axis=1)
+    P = points[np.minimum(nb, n - 1)]
+    mu = (P * w[..., None]).sum(axis=1) / cnt[:, None]
+    D = (P - mu[:, None, :]) * w[..., None]
+    sxx, syy, sxy = (D[..., 0] ** 2).sum(1), (D[..., 1] ** 2).sum(1), (D[..., 0] * D[..., 1]).sum(1)
+    tr, det = sxx + syy, sxx * syy - sxy * sxy
+    disc = np.sqrt(np.maximum(tr * tr / 4 - det, 0.0))
+    l1, l2 = tr / 2 + disc, np.maximum(tr / 2 - disc, 0.0)
+    straight = (cnt >= 4) & (l2 <= 0.04 * np.maximum(l1, 1e-12))
+    psi = np.mod(0.5 * np.arctan2(2 * sxy, sxx - syy), math.pi / 2)
+    pairs = tree.query_pairs(max(2.5 * cfg.voxel, 0.05) + 2 * cfg.noise_std, output_type="ndarray")
+    if len(pairs):
+        a, b = pairs[:, 0], pairs[:, 1]
+        dpsi = np.abs(psi[a] - psi[b])
+        dpsi = np.minimum(dpsi, math.pi / 2 - dpsi)
+        keep = straight[a] & straight[b] & (dpsi < math.radians(12.0))
+        pairs = pairs[keep]
+    g = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    _, lab = connected_components(g, directed=False)
+    lab = np.where(straight, lab, -1)
+    sizes = np.bincount(lab[lab >= 0], minlength=n) if np.any(lab >= 0) else np.zeros(n, int)
+    big = (lab >= 0) & (sizes[np.maximum(lab, 0)] >= max(cfg.min_piece, 3))
+    if not np.any(big):
+        return [np.arange(n)]
+    # corner points and tiny runs join the run of their nearest point in a large run
+    src = np.nonzero(big)[0]
+    _, j = cKDTree(points[src]).query(points[~big])
+    lab = lab.copy()
+    lab[~big] = lab[src[j]]
+    _, inv = np.unique(lab, return_inverse=True)
+    order = np.argsort(inv, kind="stable")
+    return np.split(order, np.cumsum(np.bincount(inv))[:-1])
+
+
+def _ellipse_error(points: np.ndarray) -> float:
+    """RMS radial error of ``points`` to OpenCV's ``fitEllipse`` of them (``inf`` if it fails)."""
+    if len(points) < 6:
+        return 0.0
+    try:
+        (ex, ey), (ea, eb), ang = cv2.fitEllipse(points.astype(np.float32))
+    except cv2.error:
+        return math.inf
+    if not (np.isfinite([ex, ey, ea, eb]).all() and min(ea, eb) > 1e-3) or max(ea, eb) > 4.0:
+        return math.inf
+    e = radial_error(Squircle((float(ex), float(ey)), float(ea), float(eb), math.radians(ang), 0.0), points)
+    return float(np.sqrt(np.mean(e * e)))
+
+
+def _box_error(points: np.ndarray) -> float:
+    """RMS radial error of ``points`` to the best of the squircles (``s`` 0.8, 0.95 or 0.99)
+    inscribed in their minimum-area rectangle: how well one rounded rectangle explains them."""
+    if len(points) < 3:
+        return 0.0
+    (cx, cy), (w, h), ang = cv2.minAreaRect(points.astype(np.float32))
+    w, h = max(w, 1e-3), max(h, 1e-3)
+    best = math.inf
+    for s_ in (0.8, 0.95, 0.99):
+        e = radial_error(Squircle((float(cx), float(cy)), float(w), float(h), math.radians(ang), s_), points)
+        best = min(best, float(np.sqrt(np.mean(e * e))))
+    return best
+
+
+def _merge_runs(points: np.ndarray, parts: list[np.ndarray], cfg: PerceptionConfig, free=None,
+                reach: float = 0.35) -> list[np.ndarray]:
+    """Merge runs whose union one rectangle explains (``rect_error <= split_tol``) without
+    swallowing free space, best pair (smallest error, then smallest rectangle) first: the faces
+    of one wall, seen from both sides or around its end. Runs farther apart than ``reach``
+    (the thickest wall plus a margin) are not merged."""
+    from scipy.spatial import cKDTree
+
+    parts = [np.asarray(p) for p in parts]
+    if len(parts) <= 1:
+        return parts
+    alive = dict(enumerate(parts))
+    trees = {i: cKDTree(points[p]) for i, p in alive.items()}
+    gap: dict[tuple[int, int], float] = {}
+    keys = list(alive)
+    for x, a in enumerate(keys):
+        for b in keys[x + 1:]:
+            gap[(a, b)] = float(trees[a].query(points[alive[b]], distance_upper_bound=reach)[0].min())
+    cache: dict[tuple[int, int], tuple] = {}
+
+    def cand(a, b):
+        key = (a, b) if a < b else (b, a)
+        if key not in cache:
+            cache[key] = None
+            if gap.get(key, math.inf) <= reach:
+                u = points[np.concatenate((alive[a], alive[b]))]
+                e = rect_error(u)
+                if e <= 1.5 * cfg.split_tol and _free_inside(u, free, cfg.free_cell) == 0:
+                    (_, _), (w, h), _ = cv2.minAreaRect(u.astype(np.float32))
+                    cache[key] = (round(e / max(cfg.split_tol, 1e-9) * 4) / 4, w * h)
+        return cache[key]
+
+    nxt = len(parts)
+    while len(alive) > 1:
+        best = None
+        ks = list(alive)
+        for x, a in enumerate(ks):
+            for b in ks[x + 1:]:
+                c = cand(a, b)
+                if c is not None and (best is None or c < best[0]):
+                    best = (c, a, b)
+        if best is None:
+            break
+        _, a, b = best
+        merged = np.concatenate((alive.pop(a), alive.pop(b)))
+        ta, tb = trees.pop(a), trees.pop(b)
+        for o in alive:
+            ga = gap.get((min(a, o), max(a, o)), math.inf)
+            gb = gap.get((min(b, o), max(b, o)), math.inf)
+            gap[(o, nxt)] = min(ga, gb)
+        alive[nxt] = merged
+        trees[nxt] = cKDTree(points[merged])
+        nxt += 1
+    return list(alive.values())
+
+
 def _overlap(a: Squircle, b: Squircle, grow: float) -> bool:
     """Whether ``a`` and ``b``, both grown by about ``grow``, overlap (boundary samples)."""
     if math.dist(a.center, b.center) > a.bounding_radius + b.bounding_radius + 2 * grow:
@@ -443,6 +594,7 @@ def _break_cycles(q, vw, free, fits: list[Fit], cfg: PerceptionConfig, grow: flo
     import networkx as nx
 
     fits = list(fits)
+    fr = None if free is None or not len(free) else np.asarray(free, dtype=float)
     while len(fits) > 2:
         G = nx.Graph()
         G.add_nodes_from(range(len(fits)))
@@ -470,18 +622,50 @@ def _break_cycles(q, vw, free, fits: list[Fit], cfg: PerceptionConfig, grow: flo
             f = fits[k]
             fits[k] = Fit(f.squircle, f.rms, f.closed, np.concatenate((f.indices, keep_idx)), f.p95)
             continue
+        # merge the overlapping pair whose union one rectangle explains best, counting the
+        # free space its rectangle would swallow (the faces of one wall, not two walls)
         best = None
         for a in cyc:
             for b in cyc:
                 if a < b and G.has_edge(a, b):
                     idx = np.concatenate((fits[a].indices, fits[b].indices))
-                    f = fit_squircle(q[idx], views=None if vw is None else vw[idx], free=free, config=cfg)
-                    if best is None or f.rms < best[0]:
-                        best = (f.rms, a, b, idx, f)
-        _, a, b, idx, f = best
+                    c = _piece_cost(q[idx], fr, cfg.free_cell) / len(idx)
+                    if best is None or c < best[0]:
+                        best = (c, a, b, idx)
+        _, a, b, idx = best
+        f = _fit_piece(q, vw, fr, idx, cfg)
         fits[a] = Fit(f.squircle, f.rms, f.closed, idx, f.p95)
         del fits[b]
     return fits
+
+
+def _runs(q: np.ndarray, cfg: PerceptionConfig, fr, depth: int) -> list[np.ndarray]:
+    """Split a cluster at its corners: connected components, then runs of one direction (mod
+    90 deg), runs that still bend cut where they bend, then the runs one rectangle explains
+    together (faces of one wall) merged again."""
+    parts = []
+    for comp in _components(q, cfg.link):
+        if len(comp) < 2 * cfg.min_piece:
+            parts.append(comp)
+            continue
+        for seg in _segments(q[comp], cfg):
+            run = comp[seg]
+            if rect_error(q[run]) <= cfg.split_tol or _ellipse_error(q[run]) <= cfg.split_tol:
+                parts.append(run)  # straight (faces of one wall) or curved (an ellipse)
+            else:  # a bend the directions did not separate: cut it where it bends
+                parts.extend(_split(q, run, cfg.split_tol, cfg.min_piece, depth, free=fr, margin=cfg.free_cell))
+    parts = _merge_runs(q, parts, cfg, fr)
+    return parts
+
+
+def _fit_piece(q, vw, free, idx, cfg: PerceptionConfig) -> Fit:
+    """:func:`fit_squircle` of the points ``idx`` of a cluster, with the free points near them."""
+    fr = None
+    if free is not None and len(free):
+        lo, hi = q[idx].min(axis=0) - 0.3, q[idx].max(axis=0) + 0.3
+        fr = free[np.all((free >= lo) & (free <= hi), axis=1)]
+    f = fit_squircle(q[idx], views=None if vw is None else vw[idx], free=fr, config=cfg)
+    return Fit(f.squircle, f.rms, f.closed, idx, f.p95)
 
 
 def fit_cluster(points, *, views=None, free=None, config: PerceptionConfig | None = None,
@@ -512,14 +696,21 @@ def fit_cluster(points, *, views=None, free=None, config: PerceptionConfig | Non
         return [one]
     depth = max(int(math.log2(max(max_pieces, 1))), 0)
     fr = None if free is None else _check(free, "free")
-    parts = _merge_parts(q, _split(q, np.arange(len(q)), cfg.split_tol, cfg.min_piece, depth, force=True,
-                                   free=fr, margin=cfg.free_cell), cfg, fr)
-    if len(parts) <= 1:
-        return [one]
+    parts = _runs(q, cfg, fr, depth)
     fits = []
     for idx in parts:
-        f = fit_squircle(q[idx], views=None if vw is None else vw[idx], free=free, config=cfg)
-        fits.append(Fit(f.squircle, f.rms, f.closed, idx, f.p95))
+        f = _fit_piece(q, vw, fr, idx, cfg)
+        if (len(idx) >= 2 * cfg.min_piece and (f.rms > cfg.split_tol or f.p95 > 3 * cfg.split_tol)
+                and len(fits) + len(parts) < max_pieces):
+            # not one squircle yet (walls meeting at right angles): recursive cuts
+            sub = _split(q, idx, cfg.split_tol, cfg.min_piece, depth, force=True, free=fr, margin=cfg.free_cell)
+            sub = _merge_parts(q, sub, cfg, fr)
+            if len(sub) > 1:
+                fits.extend(_fit_piece(q, vw, fr, j, cfg) for j in sub)
+                continue
+        fits.append(f)
+    if len(fits) <= 1:
+        return [one]
     if grow > 0:
         fits = _break_cycles(q, vw, free, fits, cfg, grow)
     return fits
