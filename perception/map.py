@@ -834,6 +834,15 @@ class ObstacleMap:
             notes.append(f"grew estimate {i} by {_GROW_STEP} m ({rule})")
             return True
         if rule == "cycle" and len(ids) >= 2:
+            labs = sorted({self._resolve(proposed[i].cluster) for i in ids} & set(self._clusters))
+            if len(labs) >= 2:
+                # estimates of different clusters closing a cycle: parts of one obstacle group
+                # seen separately (not yet linked by returns). Re-decompose them together: one
+                # cluster, refitted as a tree of pieces (no box over the free space between)
+                self._merge_labels(labs[0], labs[1:])
+                self._refit(labs[0], proposed, changed, removed, None)
+                notes.append(f"refitted clusters {labs} together (cycle of estimates {sorted(ids)})")
+                return True
             # merge the overlapping pair a single squircle explains best (pairs of one
             # cluster first: they are pieces of one obstacle)
             cands = []
