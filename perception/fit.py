@@ -457,7 +457,7 @@ def _segments(points: np.ndarray, cfg: PerceptionConfig) -> list[np.ndarray]:
     n = len(points)
     tree = cKDTree(points)
     radius = max(0.06, 3 * cfg.voxel) + 3 * cfg.noise_std
-    k = min(n, 12)
+    k = min(n, 24)
     d, nb = tree.query(points, k=k)
     w = (d <= radius).astype(float)
     cnt = w.sum(axis=1)
@@ -468,14 +468,17 @@ def _segments(points: np.ndarray, cfg: PerceptionConfig) -> list[np.ndarray]:
     tr, det = sxx + syy, sxx * syy - sxy * sxy
     disc = np.sqrt(np.maximum(tr * tr / 4 - det, 0.0))
     l1, l2 = tr / 2 + disc, np.maximum(tr / 2 - disc, 0.0)
-    straight = (cnt >= 4) & (l2 <= 0.04 * np.maximum(l1, 1e-12))
+    # straight: spread across the local direction small against the spread along it (plus
+    # the range noise, which the averaged returns keep partly)
+    sn, st = np.sqrt(l2 / np.maximum(cnt, 1)), np.sqrt(l1 / np.maximum(cnt, 1))
+    straight = (cnt >= 4) & (sn <= 0.2 * st + cfg.noise_std)
     psi = np.mod(0.5 * np.arctan2(2 * sxy, sxx - syy), math.pi / 2)
     pairs = tree.query_pairs(max(2.5 * cfg.voxel, 0.05) + 2 * cfg.noise_std, output_type="ndarray")
     if len(pairs):
         a, b = pairs[:, 0], pairs[:, 1]
         dpsi = np.abs(psi[a] - psi[b])
         dpsi = np.minimum(dpsi, math.pi / 2 - dpsi)
-        keep = straight[a] & straight[b] & (dpsi < math.radians(12.0))
+        keep = straight[a] & straight[b] & (dpsi < math.radians(12.0 + 300.0 * cfg.noise_std))
         pairs = pairs[keep]
     g = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
     _, lab = connected_components(g, directed=False)
