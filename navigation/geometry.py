@@ -428,9 +428,10 @@ class ExactDistance:
                 continue
             perim = max(_perimeter(sq) for sq in self.squircles[lo:hi])
             n = int(min(8192, max(min_samples, math.ceil(perim / spacing))))
-            psi = np.stack([sq.boundary_psi(n) for sq in self.squircles[lo:hi]])
-            pts = np.stack([sq.point_at(p) for p, sq in zip(psi, self.squircles[lo:hi])])
-            self._groups.append((lo, hi, psi, pts, 0.5 * _max_arc(self.squircles[lo:hi], psi)))
+            tables = [_sample_table(sq, n) for sq in self.squircles[lo:hi]]
+            psi = np.stack([t[0] for t in tables])
+            pts = np.stack([t[1] for t in tables])
+            self._groups.append((lo, hi, psi, pts, 0.5 * np.array([t[2] for t in tables])))
 
     def boundary_samples(self, i: int) -> np.ndarray:
         """Boundary samples ``(n, 2)`` of squircle ``i``."""
@@ -505,7 +506,7 @@ class ExactDistance:
         return np.where(inside, -dist, dist)
 
 
-@functools.lru_cache(maxsize=256)
+@functools.lru_cache(maxsize=4096)
 def _exact_distance(sq: Squircle, min_samples: int) -> ExactDistance:
     """The (immutable) distance table of one squircle, built once."""
     return ExactDistance([sq], spacing=0.05, stages=10, m=16, min_samples=min_samples)
@@ -516,6 +517,20 @@ def clear_geometry_cache() -> None:
     _exact_distance.cache_clear()
     _area.cache_clear()
     _grow.cache_clear()
+    _sample_table.cache_clear()
+    _perimeter.cache_clear()
+
+
+@functools.lru_cache(maxsize=8192)
+def _sample_table(sq: Squircle, n: int) -> tuple[np.ndarray, np.ndarray, float]:
+    """``n`` arc-length-even boundary angles of ``sq``, the points, and the largest arc between
+    consecutive samples (memoised: perception and the executive build many tables over mostly
+    the same squircles)."""
+    psi = sq.boundary_psi(n)
+    pts = sq.point_at(psi)
+    for a in (psi, pts):
+        a.flags.writeable = False
+    return psi, pts, float(_max_arc([sq], psi[None])[0])
 
 
 def _max_arc(squircles, psi: np.ndarray, sub: int = 16) -> np.ndarray:
@@ -531,6 +546,7 @@ def _max_arc(squircles, psi: np.ndarray, sub: int = 16) -> np.ndarray:
     return out
 
 
+@functools.lru_cache(maxsize=8192)
 def _perimeter(sq: Squircle) -> float:
     pts = sq.point_at(np.linspace(0.0, 2.0 * math.pi, 2049))
     return float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
