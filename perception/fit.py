@@ -30,10 +30,12 @@ the *conservative completion*:
    boundary, up to ``inside_tol``.
 
 :func:`fit_cluster` decomposes clusters a single squircle does not explain (paper 001
-section 4.2.1): when the RMS radial error exceeds ``split_tol`` the points are cut in two
-where the sum of the halves' rectangle errors is smallest (cuts across either axis of the
-minimum-area rectangle, i.e. at the corners of L, T and U shapes), recursively, and every
-piece is fitted on its own; adjacent pieces overlap once inflated, forming a tree.
+section 4.2.1): when the RMS radial error exceeds ``split_tol`` the cluster is split at its
+corners - connected components, then runs of points whose local direction (principal axis of
+their neighbours) agrees modulo 90 degrees, runs that still bend cut where they bend - and the
+runs one rectangle explains together without swallowing free space (the faces of one wall) are
+merged back; every piece is fitted on its own, and adjacent pieces overlap once inflated,
+forming a tree (docs/perception.md, "Decomposition").
 
 :func:`inflate` grows a squircle by the robot radius (configuration-space obstacle).
 """

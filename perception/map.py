@@ -28,7 +28,8 @@ The map starts knowing only the workspace and grows from scans:
    map because the untouched part was accepted before. A :class:`~navigation.ForestError` is
    repaired conservatively: a too-close or shallow pair is grown by 3 cm per try, a cycle is
    broken by merging the two closest members into one squircle covering both, after three
-   tries a pair is merged; if repairs fail the update of those estimates is reverted (logged).
+   tries a pair is merged; a cycle through estimates of different clusters merges the clusters
+   and re-decomposes them together; if repairs fail the update of those estimates is reverted (logged).
 
 Every update returns a :class:`MapUpdate` listing the added, updated and removed estimate ids.
 """

@@ -111,6 +111,22 @@ def test_walls_decompose_into_a_tree_of_squircles(name, parts):
     _check_tree(pieces)
 
 
+@pytest.mark.parametrize("noise", [0.0, 0.01])
+def test_crossing_walls_under_another_angle_split_at_the_corners(noise):
+    # two walls crossing at 70 degrees (random worlds' trees are not axis-aligned): one piece
+    # per wall, not a blob over both, with 0.01 m noise on the returns as well
+    parts = [Squircle((0.0, 0.0), 1.1, 0.25, 0.0, 0.95), Squircle((-0.1, -0.2), 1.2, 0.25, math.radians(70), 0.95)]
+    pts = _union_boundary(parts, 400)
+    if noise:
+        pts = pts + np.random.default_rng(5).normal(0.0, noise, pts.shape)
+    cfg = PerceptionConfig.from_lidar(range_max=1.0, angle_increment=math.radians(1.0), noise_std=noise)
+    fits = fit_cluster(pts, config=cfg, grow=0.105)
+    pieces = [f.squircle for f in fits]
+    assert len(pieces) == 2
+    assert _iou(parts, pieces) >= (0.8 if noise == 0 else 0.7)
+    _check_tree(pieces)
+
+
 def test_single_squircle_is_not_split():
     truth = Squircle((0.0, 0.0), 0.9, 0.25, 0.7, 0.97)
     fits = fit_cluster(truth.boundary_points(200), config=CFG)
