@@ -72,6 +72,16 @@ class ClearanceBound:
         _, half = self._table.sampled(np.zeros((1, 2)), np.array([m]))
         self._gap = float(_inside_rectangle(self._ws, self._table.boundary_samples(m)).max()) + float(half[0])
 
+    def exact(self, q) -> float:
+        """Exact clearance of one point ``q (2,)``: the smallest distance to an obstacle or to the
+        workspace boundary (negative inside an obstacle or outside the workspace), 1e-9 m
+        accurate (:meth:`ExactDistance.signed` on this bound's tables)."""
+        p = np.asarray(q, dtype=float).reshape(1, 2)
+        k = self._m + 1
+        d = self._table.signed(np.repeat(p, k, axis=0), np.arange(k))
+        d[self._m] = -d[self._m]  # inside the workspace: its signed distance is negative
+        return float(d.min())
+
     def __call__(self, q, far: float = np.inf) -> np.ndarray:
         """Lower bound ``(N,)`` (or a float for ``(2,)``) on the clearance of ``q``.
 

@@ -84,14 +84,6 @@ GRADIENT_FLOOR = 1e-300
 GOAL_TOLERANCE = 1e-9
 
 
-def _clearance(forest, q: np.ndarray) -> float:
-    """Exact distance from ``q`` to the nearest obstacle or to the workspace boundary."""
-    d = -float(forest.workspace.distance(q))
-    for o in forest.obstacles:
-        d = min(d, float(o.distance(q)))
-    return max(d, 1e-6)
-
-
 def wrap_angle(a):
     """Wrap angles to ``(-pi, pi]`` (array or float)."""
     w = np.remainder(np.asarray(a, dtype=float) + np.pi, 2.0 * np.pi) - np.pi
@@ -178,16 +170,16 @@ class OrientedField:
         self._points = (self._points - self._pg) @ A.T
         axis = A @ J @ np.array([math.cos(self.heading), math.sin(self.heading)])
         self._axis = axis / np.linalg.norm(axis)
-        if strength is None:
-            strength = DIPOLE_FRACTION * _clearance(nf.forest, self.goal)
-        strength = float(strength)
-        if not (math.isfinite(strength) and strength > 0):
-            raise NavigationError(f"strength must be a positive finite number, got {strength}")
-        self.strength = strength
         self.clearance = forest_clearance(nf.forest)
         """Certified lower bound ``q -> d`` on the distance to the field's obstacles and
         workspace boundary (:class:`~navigation.clearance.ClearanceBound`; the obstacles are
         those the navigation function was built on, grown by its ``inflation``)."""
+        if strength is None:
+            strength = DIPOLE_FRACTION * max(self.clearance.exact(self.goal), 1e-6)
+        strength = float(strength)
+        if not (math.isfinite(strength) and strength > 0):
+            raise NavigationError(f"strength must be a positive finite number, got {strength}")
+        self.strength = strength
 
     def __repr__(self) -> str:
         return (f"OrientedField(goal={self.goal.tolist()}, heading={self.heading:.4f}, "

@@ -169,3 +169,17 @@ def test_safety_limit_caps_speed_by_clearance():
     assert float(field.clearance(pose[:2])) < 0.03
     assert track(pose, field, unlimited).v == cfg.v_max
     assert track(pose, field, cfg).v <= float(field.clearance(pose[:2])) / cfg.safety_horizon < cfg.v_max
+
+
+@pytest.mark.parametrize("name", ["simple", "office"])
+def test_clearance_exact_matches_squircle_distances(name):
+    """``ClearanceBound.exact`` (the oriented field's dipole strength uses it) equals the
+    smallest exact distance to the grown obstacles and the shrunk workspace boundary."""
+    world = shared_world(name)
+    forest = world.forest(world.robot.radius)
+    bound = navigation.clearance.forest_clearance(forest)
+    rng = np.random.default_rng(5)
+    ws = forest.workspace
+    for q in np.asarray(ws.center) + rng.uniform(-0.5, 0.5, size=(25, 2)) * (ws.width, ws.height):
+        ref = min([-float(ws.distance(q))] + [float(o.distance(q)) for o in forest.obstacles])
+        assert bound.exact(q) == pytest.approx(ref, abs=2e-9)
