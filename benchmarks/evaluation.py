@@ -1,0 +1,407 @@
+"""Evaluation suite: paper 001 Table 1 reproduced on our worlds, all methods side by side (issue 8).
+
+Run from the repository root::
+
+    python -m benchmarks.evaluation [--quick] [--out DIR] [--random N] [--methods HT OHPF NF RRT* oracle]
+                                    [--jobs N] [--max-time S]
+
+Scenarios: the shared worlds ``office`` (its mission and its urgent ``u1`` event at 60 s) and
+``cluttered20`` (visit ``d1 .. d4``), and the random forest worlds
+``tests.worldgen.random_forest_world(seed, gap=0.3)`` for seeds ``0 .. N-1`` (visit-all missions
+over their 4 regions). Obstacles are unknown except the world file's ``known_obstacles``; the
+simulator is seeded with 0. ``--quick`` runs two small random worlds (8 obstacles, seeds 0
+and 1) and a reduced timing sweep: the CI smoke test.
+
+Methods (:mod:`benchmarks.methods`): ``HT``, ``OHPF``, ``NF``, ``RRT*`` (skipped, with the
+reason in the report, when OMPL's Python bindings do not work) and ``oracle``.
+
+Metrics per method and scenario: completed, collisions, planning time (initial and total, wall
+s), execution time (simulated s), travel distance and its ratio to the oracle, replans,
+oscillation (sign changes of the commanded turn rate per metre, ``tamp.run``), chatter
+(sign flips of the executed turn rate between consecutive control periods per metre;
+*oscillation flagged* when above ``CHATTER_FLAG``), minimum clearance. Over the random set:
+success rate, and median and 90th percentile of every metric over the completed runs.
+
+Output in ``--out`` (default ``benchmarks/results/evaluation``, ``.../evaluation_quick`` with
+``--quick``): ``evaluation.json``, ``evaluation.md`` (also printed), ``traj_<scenario>.png``
+(trajectories of all methods) and ``potential_time.png`` (potential construction from scratch
+vs incremental update against the number of obstacles). Progress on stderr.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import re
+import sys
+import time
+from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from benchmarks._common import log, machine_info, write_results
+from benchmarks.methods import ADAPTATION, METHODS, ompl_status, oracle_tour, run_method
+
+__all__ = ["main", "run", "scenario", "render_markdown", "CHATTER_FLAG", "SHARED"]
+
+SHARED = ("office", "cluttered20")
+CHATTER_FLAG = 1.0  #: chatter (flips per metre) above which a run's oscillation is flagged
+QUICK_OBSTACLES = 8
+RANDOM_KEYS = ("distance", "ratio", "execution_time", "planning_time", "initial_planning_time", "max_replan_time",
+               "replans", "oscillation", "chatter", "min_clearance")
+_VISIT_ALL = re.compile(r"^\s*F\s*\w+(\s*&\s*F\s*\w+)*\s*$")
+
+
+# ------------------------------------------------------------------------------- scenarios
+def scenario(name: str, quick: bool = False):
+    """``(world, task or None)`` of a scenario name: a built-in world or ``random<seed>``."""
+    import navigation
+
+    if name.startswith("random"):
+        from tests.worldgen import random_forest_world
+
+        kw = {"n_obstacles": QUICK_OBSTACLES} if quick else {}
+        w = random_forest_world(int(name[len("random"):]), gap=0.3, **kw)
+        return w, " & ".join(f"F {r}" for r in w.regions)
+    return navigation.load_world(name), None
+
+
+def _run_scenario(args) -> dict:
+    """All methods on one scenario (one worker process); the oracle last (it needs HT's order
+    when the mission is not visit-all)."""
+    name, methods, quick, max_time = args
+    world, task = scenario(name, quick)
+    out = {"scenario": name, "world": world.name, "task": task or world.task, "n_obstacles": len(world.obstacles),
+           "runs": {}}
+    for m in methods:
+        if m == "oracle":
+            continue
+        t0 = time.perf_counter()
+        try:
+            r = run_method(m, world, task, max_time=max_time)
+        except Exception as err:  # noqa: BLE001 - a crashing baseline is a result, not the end of the suite
+            r = {"error": f"{type(err).__name__}: {err}", "completed": False}
+        r["wall"] = time.perf_counter() - t0
+        out["runs"][m] = r
+        log(f"[eval] {name} {m}: " + (f"error {r['error']}" if "error" in r else
+                                      f"completed={r['completed']} collisions={r['collisions']} "
+                                      f"distance={r['distance']:.2f} planning={r['planning_time']:.2f} s "
+                                      f"chatter={r['chatter']:.2f}/m (wall {r['wall']:.0f} s)"))
+    if "oracle" in methods:
+        visit_all = bool(_VISIT_ALL.match(out["task"])) and not world.events
+        ref = out["runs"].get("HT", {}).get("visited") or list(world.regions)
+        t0 = time.perf_counter()
+        d, order = oracle_tour(world, ref, visit_all=visit_all)
+        out["runs"]["oracle"] = {"distance": d, "visited": order, "completed": d is not None,
+                                 "orders": "all orders" if visit_all else "HT's order", "wall": time.perf_counter() - t0}
+        for r in out["runs"].values():
+            if "distance" in r and d:
+                r["ratio"] = r["distance"] / d
+    return out
+
+
+# --------------------------------------------------------------------------------- timing
+def _timing(quick: bool) -> dict:
+    """Potential construction vs number of obstacles: ``benchmarks.online.bench_world``
+    (incremental update per added obstacle with the forest memo warm, as HT and OHPF do it;
+    from scratch with the memo cleared, as a nominal NF implementation does it)."""
+    from benchmarks.online import MAX_DEPTH, SEED, bench_world
+    from tests.worldgen import random_forest_world
+
+    sizes, picks = ((5, 10), 1) if quick else ((5, 10, 20, 30, 40), 5)
+    rows = []
+    for n in sizes:
+        row = {"n_obstacles": n, **bench_world(random_forest_world(SEED, n_obstacles=n, max_depth=MAX_DEPTH), picks)}
+        rows.append(row)
+        log(f"[eval] timing {n} obstacles: update {row['update'] * 1e3:.1f} ms, from scratch {row['rebuild'] * 1e3:.1f} ms")
+    return {"rows": rows}
+
+
+# -------------------------------------------------------------------------------- figures
+_COLOURS = {"HT": (0, 0, 220), "OHPF": (0, 150, 0), "NF": (220, 60, 0), "RRT*": (0, 140, 255)}  # BGR, as Fig. 14
+
+
+def draw_trajectories(world, runs: dict, size: int = 720) -> np.ndarray:
+    """Every method's trajectory on one picture (paper Fig. 14): true obstacles grey, regions,
+    start, a legend with each method's outcome. Uses ``navigation.render``'s canvas."""
+    from navigation.render import _Canvas
+
+    cv = _Canvas(world.workspace, size)
+    img = np.full((cv.h, cv.w, 3), 255, np.uint8)
+    aa, t = cv2.LINE_AA, cv.thick
+    for o in world.obstacles:
+        pts = cv.px(o.boundary_points(256))
+        cv2.fillPoly(img, [pts], (200, 200, 200), aa)
+        cv2.polylines(img, [pts], True, (90, 90, 90), t, aa)
+    cv2.polylines(img, [cv.px(world.workspace.boundary_points(512))], True, (0, 0, 0), 2 * t, aa)
+    for name, reg in world.regions.items():
+        c = tuple(int(v) for v in cv.px(reg.center)[0])
+        cv2.circle(img, c, cv.length(reg.radius), (120, 0, 120), t, aa)
+        cv2.putText(img, name, (c[0] + cv.length(reg.radius) + 2, c[1] - 2), cv2.FONT_HERSHEY_SIMPLEX, cv.font,
+                    (120, 0, 120), 1, aa)
+    y = 18
+    for m, r in runs.items():
+        if m not in _COLOURS:
+            continue
+        col = _COLOURS[m]
+        if r.get("trajectory"):
+            cv2.polylines(img, [cv.px(np.asarray(r["trajectory"])[:, :2])], False, col, 2 * t, aa)
+            label = (f"{m}: {r['distance']:.1f} m" + ("" if r["completed"] else " (not completed)")
+                     + (f", {r['collisions']} coll." if r["collisions"] else ""))
+        else:
+            label = f"{m}: {r.get('error', 'no run')}"[:60]
+        cv2.line(img, (8, y - 4), (28, y - 4), col, 3, aa)
+        cv2.putText(img, label, (34, y), cv2.FONT_HERSHEY_SIMPLEX, cv.font, (0, 0, 0), 1, aa)
+        y += 18
+    if "oracle" in runs and runs["oracle"].get("distance"):
+        cv2.putText(img, f"oracle tour: {runs['oracle']['distance']:.1f} m (not drawn)", (8, y),
+                    cv2.FONT_HERSHEY_SIMPLEX, cv.font, (0, 0, 0), 1, aa)
+    s = tuple(int(v) for v in cv.px(world.robot.start[:2])[0])
+    cv2.drawMarker(img, s, (0, 0, 0), cv2.MARKER_STAR, 14, 2, aa)
+    return img
+
+
+def draw_line_chart(series: dict, xlabel: str, ylabel: str, title: str, size=(640, 420)) -> np.ndarray:
+    """Minimal log-y line chart: ``series`` maps a label to ``(xs, ys, bgr)``."""
+    W, H = size
+    L, R, T, B = 70, 20, 40, 50
+    img = np.full((H, W, 3), 255, np.uint8)
+    xs = np.concatenate([np.asarray(s[0], float) for s in series.values()])
+    ys = np.concatenate([np.asarray(s[1], float) for s in series.values()])
+    x0, x1 = 0.0, float(xs.max()) * 1.05
+    ly0, ly1 = math.floor(math.log10(ys.min())), math.ceil(math.log10(ys.max()))
+    if ly1 == ly0:
+        ly1 += 1
+
+    def px(x, y):
+        u = L + (x - x0) / (x1 - x0) * (W - L - R)
+        v = H - B - (math.log10(y) - ly0) / (ly1 - ly0) * (H - T - B)
+        return int(round(u)), int(round(v))
+
+    f, aa = cv2.FONT_HERSHEY_SIMPLEX, cv2.LINE_AA
+    cv2.rectangle(img, (L, T), (W - R, H - B), (0, 0, 0), 1)
+    for e in range(ly0, ly1 + 1):
+        _, v = px(x0, 10.0 ** e)
+        cv2.line(img, (L, v), (W - R, v), (220, 220, 220), 1)
+        cv2.putText(img, f"{10.0 ** e * 1e3:g} ms", (4, v + 4), f, 0.4, (0, 0, 0), 1, aa)
+    for xt in np.unique(xs):
+        u, _ = px(xt, 10.0 ** ly0)
+        cv2.line(img, (u, H - B), (u, H - B + 4), (0, 0, 0), 1)
+        cv2.putText(img, f"{xt:g}", (u - 8, H - B + 18), f, 0.4, (0, 0, 0), 1, aa)
+    cv2.putText(img, xlabel, (W // 2 - 60, H - 12), f, 0.45, (0, 0, 0), 1, aa)
+    cv2.putText(img, title, (L, T - 22), f, 0.5, (0, 0, 0), 1, aa)
+    cv2.putText(img, ylabel, (L, T - 6), f, 0.4, (0, 0, 0), 1, aa)
+    for k, (label, (sx, sy, col)) in enumerate(series.items()):
+        pts = np.array([px(a, b) for a, b in zip(sx, sy)], np.int32)
+        cv2.polylines(img, [pts], False, col, 2, aa)
+        for p in pts:
+            cv2.circle(img, tuple(int(v) for v in p), 3, col, -1, aa)
+        cv2.putText(img, label, (L + 8, T + 16 + 16 * k), f, 0.42, col, 1, aa)
+    return img
+
+
+# ------------------------------------------------------------------------------------ run
+def run(names: Sequence[str], methods: Sequence[str], *, quick: bool = False, jobs: int = 1,
+        max_time: float = 300.0, timing: bool = True) -> dict:
+    methods = list(methods)
+    ompl = ompl_status()
+    skipped = {}
+    if "RRT*" in methods and not ompl[0]:
+        methods.remove("RRT*")
+        skipped["RRT*"] = ompl[1]
+        log(f"[eval] RRT* skipped: {ompl[1]}")
+    tasks = [(n, methods, quick, max_time) for n in names]
+    t0 = time.perf_counter()
+    if jobs > 1:
+        with ProcessPoolExecutor(max_workers=jobs) as pool:
+            scenarios = list(pool.map(_run_scenario, tasks))
+    else:
+        scenarios = [_run_scenario(t) for t in tasks]
+    result = {"command": None, "quick": quick, "methods": methods, "skipped": skipped, "ompl": ompl[1], "max_time": max_time,
+              "chatter_flag": CHATTER_FLAG, "scenarios": scenarios, "wall": time.perf_counter() - t0,
+              "machine": machine_info()}
+    result["aggregates"] = aggregate([s for s in scenarios if s["scenario"].startswith("random")], methods)
+    if timing:
+        result["timing"] = _timing(quick)
+    return result
+
+
+def aggregate(scenarios: Sequence[dict], methods: Sequence[str]) -> dict:
+    """Per method: runs, success rate, collisions and, over completed runs, median / p90 of
+    :data:`RANDOM_KEYS`."""
+    agg = {}
+    for m in methods:
+        runs = [s["runs"][m] for s in scenarios if m in s["runs"]]
+        done = [r for r in runs if r.get("completed")]
+        row = {"runs": len(runs), "completed": len(done), "success_rate": len(done) / len(runs) if runs else None,
+               "collisions": sum(r.get("collisions", 0) for r in runs),
+               "flagged": sum(r.get("chatter", 0.0) > CHATTER_FLAG for r in runs)}
+        for k in RANDOM_KEYS:
+            vals = [float(r[k]) for r in done if r.get(k) is not None]
+            row[k] = {"median": float(np.median(vals)), "p90": float(np.percentile(vals, 90))} if vals else None
+        agg[m] = row
+    return agg
+
+
+# ---------------------------------------------------------------------------------- report
+def _f(x, fmt="{:.2f}"):
+    return "-" if x is None else fmt.format(x)
+
+
+def _yes(r):
+    if "error" in r:
+        return "ERROR"
+    return "yes" if r.get("completed") else f"NO ({r.get('state', '?')})"
+
+
+def scenario_table(s: dict) -> list[str]:
+    lines = [f"### {s['scenario']} ({s['n_obstacles']} obstacles; task `{s['task']}`)", "",
+             "| method | completed | collisions | planning initial / total s | execution s | distance m | "
+             "/ oracle | replans | oscillation /m | chatter /m | oscillation flagged | min clearance m | "
+             "adaptation | visited |",
+             "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|---|---|"]
+    for m, r in s["runs"].items():
+        adapt = {True: "yes", False: "no", None: "-"}[ADAPTATION.get(m)]
+        if m == "oracle":
+            lines.append(f"| oracle | - | - | - | - | {_f(r['distance'])} | 1.00 | - | - | - | - | - | - | "
+                         f"{' '.join(r['visited'])} ({r['orders']}) |")
+            continue
+        if "error" in r:
+            lines.append(f"| {m} | ERROR: {r['error']} |" + " |" * 12)
+            continue
+        lines.append(
+            f"| {m} | {_yes(r)} | {r['collisions']} | {r['initial_planning_time']:.3f} / {r['planning_time']:.3f} | "
+            f"{r['execution_time']:.1f} | {r['distance']:.2f} | {_f(r.get('ratio'))} | {r['replans']} | "
+            f"{r['oscillation']:.2f} | {r['chatter']:.2f} | {'yes' if r['chatter'] > CHATTER_FLAG else 'no'} | "
+            f"{r['min_clearance']:.3f} | {adapt} | {' '.join(r['visited'])} |")
+    return lines + [""]
+
+
+def render_markdown(result: dict) -> str:
+    out = ["# Evaluation: paper 001 Table 1 on our worlds", "",
+           f"Command: `{result.get('command') or 'python -m benchmarks.evaluation'}`; wall {result['wall']:.0f} s; "
+           f"at most {result['max_time']:.0f} simulated s per mission; RRT*: "
+           + (f"skipped ({result['skipped']['RRT*']})" if "RRT*" in result["skipped"] else result["ompl"]) + ".",
+           "",
+           "Planning time: wall s (initial synthesis, and total with every re-plan). Execution time: simulated s. "
+           "Oscillation: sign changes of the commanded turn rate per metre (`tamp.run`). Chatter: sign flips of "
+           "the executed turn rate between consecutive 0.1 s periods per metre; *flagged* above "
+           f"{result['chatter_flag']:g}/m. Oracle: shortest full-knowledge tour (see docs/evaluation.md for why a "
+           "ratio can fall below 1).", ""]
+    shared = [s for s in result["scenarios"] if not s["scenario"].startswith("random")]
+    rand = [s for s in result["scenarios"] if s["scenario"].startswith("random")]
+    if shared:
+        out += ["## Shared worlds", ""]
+        for s in shared:
+            out += scenario_table(s)
+    if rand:
+        methods = [m for m in result["methods"]]
+        out += [f"## Random forest worlds ({len(rand)})", "",
+                "Success rate and collisions over all runs; median / p90 over the completed runs.", "",
+                "| method | success | collisions | flagged | distance m | / oracle | execution s | planning total s | "
+                "planning initial s | max replan s | replans | oscillation /m | chatter /m | min clearance m |",
+                "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+        for m in methods:
+            a = result["aggregates"][m]
+            if m == "oracle":
+                d = a["distance"]
+                out.append(f"| oracle | {a['completed']}/{a['runs']} | - | - | "
+                           f"{_f(d and d['median'])} / {_f(d and d['p90'])} |" + " - |" * 9)
+                continue
+
+            def mp(k, fmt="{:.2f}"):
+                v = a[k]
+                return "-" if v is None else f"{fmt.format(v['median'])} / {fmt.format(v['p90'])}"
+
+            out.append(f"| {m} | {a['completed']}/{a['runs']} | {a['collisions']} | {a['flagged']} | {mp('distance')} | "
+                       f"{mp('ratio')} | {mp('execution_time', '{:.1f}')} | {mp('planning_time', '{:.3f}')} | "
+                       f"{mp('initial_planning_time', '{:.3f}')} | {mp('max_replan_time', '{:.3f}')} | "
+                       f"{mp('replans', '{:.0f}')} | {mp('oscillation')} | {mp('chatter')} | {mp('min_clearance', '{:.3f}')} |")
+        out += ["", "Per world (distance m; `x` = not completed, `!` = collision):", "",
+                "| world | " + " | ".join(methods) + " |", "|---|" + "---:|" * len(methods)]
+        for s in rand:
+            cells = []
+            for m in methods:
+                r = s["runs"].get(m, {})
+                if r.get("distance") is None:
+                    cells.append("-")
+                    continue
+                mark = ("" if r.get("completed") else " x") + ("!" if r.get("collisions") else "")
+                cells.append(f"{r['distance']:.2f}{mark}")
+            out.append(f"| {s['scenario']} | " + " | ".join(cells) + " |")
+        out.append("")
+    if "timing" in result:
+        out += ["## Potential construction vs obstacles", "",
+                "`benchmarks.online.bench_world`: median per added obstacle; *update* = incremental forest + "
+                "navigation function (HT, OHPF), *from scratch* = forest memo cleared (nominal NF). RRT* has "
+                "no potential. Figure: `potential_time.png`.", "",
+                "| obstacles | update ms (median / max) | from scratch ms |", "|---:|---:|---:|"]
+        for r in result["timing"]["rows"]:
+            out.append(f"| {r['n_obstacles']} | {r['update'] * 1e3:.1f} / {r['update_max'] * 1e3:.1f} | "
+                       f"{r['rebuild'] * 1e3:.1f} |")
+        out.append("")
+    out += [f"Machine: {result['machine']}", ""]
+    return "\n".join(out)
+
+
+def _write_figures(out: Path, result: dict) -> list[str]:
+    files = []
+    for s in result["scenarios"]:
+        world, _ = scenario(s["scenario"], result["quick"])
+        p = out / f"traj_{s['scenario']}.png"
+        cv2.imwrite(str(p), draw_trajectories(world, s["runs"]))
+        files.append(p.name)
+    if "timing" in result:
+        rows = result["timing"]["rows"]
+        n = [r["n_obstacles"] for r in rows]
+        img = draw_line_chart({"incremental update (HT, OHPF)": (n, [r["update"] for r in rows], (0, 0, 220)),
+                               "from scratch (NF)": (n, [r["rebuild"] for r in rows], (220, 60, 0))},
+                              "number of obstacles", "forest + navigation function, median per added obstacle",
+                              "Potential construction time")
+        p = out / "potential_time.png"
+        cv2.imwrite(str(p), img)
+        files.append(p.name)
+    return files
+
+
+def _strip(result: dict) -> dict:
+    """JSON copy without trajectories (they go into the figures) and the executive's notes."""
+    import copy
+
+    r = copy.deepcopy(result)
+    for s in r["scenarios"]:
+        for run in s["runs"].values():
+            run.pop("trajectory", None)
+    return r
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.evaluation", description=__doc__.split("\n\n")[0],
+                                     formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    parser.add_argument("--quick", action="store_true", help="two small random worlds, reduced timing sweep (CI smoke)")
+    parser.add_argument("--random", type=int, default=20, help="random forest worlds (seeds 0 .. N-1)")
+    parser.add_argument("--shared", nargs="*", default=list(SHARED), help="shared worlds to run")
+    parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=list(METHODS), help="methods to run")
+    parser.add_argument("--jobs", type=int, default=1, help="scenarios run in parallel (processes)")
+    parser.add_argument("--max-time", type=float, default=300.0, help="simulated seconds per mission")
+    parser.add_argument("--no-timing", action="store_true", help="skip the potential-construction timing sweep")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="output directory (default benchmarks/results/evaluation[_quick])")
+    args = parser.parse_args(argv)
+    names = ["random0", "random1"] if args.quick else list(args.shared) + [f"random{s}" for s in range(args.random)]
+    out = args.out or Path("benchmarks") / "results" / ("evaluation_quick" if args.quick else "evaluation")
+    result = run(names, args.methods, quick=args.quick, jobs=max(1, args.jobs), max_time=args.max_time,
+                 timing=not args.no_timing)
+    result["command"] = "python -m benchmarks.evaluation" + ("" if argv is None and len(sys.argv) <= 1 else " " + " ".join(
+        sys.argv[1:] if argv is None else argv))
+    out.mkdir(parents=True, exist_ok=True)
+    result["figures"] = _write_figures(out, result)
+    write_results(out, "evaluation", _strip(result), render_markdown(result))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,399 @@
+"""The methods compared by the evaluation suite (issue 8; paper 001 section 5.3, Table 1).
+
+Every method runs through the same simulator, lidar, perception (:class:`perception.ObstacleMap`),
+mission automaton (:class:`tamp.MissionPlanner`, mission events included) and metrics. The
+baselines are thin subclasses of :class:`tamp.Executive` that replace only the layer they
+differ in, so that a difference in the table is the difference between the methods and not
+between two copies of the surrounding machinery:
+
+=========  ===========================================================================
+``HT``     the full system: :func:`tamp.run.run_mission` with :class:`tamp.Executive`.
+``OHPF``   :class:`OHPFExecutive`: the same task planning and online plan adaptation
+           (transition costs and feasibility from the harmonic trees' roadmap, re-planning on
+           discoveries), but the robot drives every task transition with *one* oriented field
+           to the region (arrival heading along the tree's last segment): no intermediate
+           waypoints, i.e. no second-layer trees in execution.
+``NF``     :class:`NFExecutive`: the plain navigation function (negated gradient of
+           ``phi_NF``, no dipole, no heading) tracked by the eq. 24 unicycle controller; the
+           plan is the initial one on straight-line costs, never re-costed (no adaptation);
+           the potential is rebuilt on every map change (it must contain what was seen).
+``RRT*``   :class:`RRTStarExecutive`: OMPL's ``RRTstar`` (``ompl`` Python bindings) on the
+           known + estimated obstacles grown by the robot radius and a margin, followed by
+           a pure-pursuit path follower; the task plan is the initial one (no adaptation);
+           the path is re-planned when a changed obstacle blocks its remainder.
+``oracle`` :func:`oracle_tour`: shortest collision-free tour with full knowledge (distance only).
+=========  ===========================================================================
+
+:func:`run_method` runs one method on one world and returns the :func:`tamp.run.run_mission`
+fields plus the trajectory; :func:`drive` is the closed loop for the executive subclasses (the
+same loop as ``run_mission``, which cannot take another executive class).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import time
+
+import numpy as np
+
+from navigation.clearance import forest_clearance
+from navigation.errors import NavigationError
+from navigation.geometry import beta_rows, pack
+from navigation.potential import NavigationFunction
+from perception.fit import inflate
+from tamp.errors import NoPlanError
+from tamp.executive import Executive, ExecutiveConfig, ExecutiveState
+from tamp.navmap import START
+from tamp.roadmap import segments_clear
+from tamp.run import _oscillation, run_mission
+
+__all__ = ["METHODS", "ADAPTATION", "OHPFExecutive", "NFExecutive", "RRTStarExecutive", "PlainField",
+           "ompl_status", "drive", "run_method", "oracle_tour", "chatter"]
+
+METHODS = ("HT", "OHPF", "NF", "RRT*", "oracle")
+#: the paper's "Adaptation" column: does the task plan adapt to what the robot discovers
+ADAPTATION = {"HT": True, "OHPF": True, "NF": False, "RRT*": False, "oracle": None}
+
+
+# --------------------------------------------------------------------------------------- OHPF
+class OHPFExecutive(Executive):
+    """HT's planning and adaptation, executed with one oriented field per task transition.
+
+    The leg is still computed (its last segment gives the arrival heading, and the executive's
+    checks of the leg against discovered obstacles still trigger re-planning), but the robot
+    always tracks the field of the leg's *last* waypoint, the region: the intermediate
+    waypoints of the harmonic tree are not used.
+    """
+
+    def _command(self, p):
+        if self.leg:
+            self.wp = len(self.leg) - 1
+        return super()._command(p)
+
+
+# ----------------------------------------------------------------------------------------- NF
+class PlainField:
+    """The negated gradient of a navigation function, in the interface the controller uses.
+
+    :func:`navigation.control.track` reads ``goal``, ``clearance(q, far)`` and
+    ``evaluate(q).angle`` / ``.angle_gradient``; here ``theta = atan2(-grad phi_NF)`` and its
+    exact gradient ``(a_x grad a_y - a_y grad a_x) / |a|^2`` with ``grad a = -Hess phi_NF``.
+    Outside free space the navigation function's gradient already points back in.
+    """
+
+    class _Eval:
+        __slots__ = ("angle", "angle_gradient")
+
+        def __init__(self, angle, angle_gradient):
+            self.angle, self.angle_gradient = angle, angle_gradient
+
+    def __init__(self, nf: NavigationFunction):
+        self.nf = nf
+        self.goal = np.asarray(nf.goal, dtype=float).reshape(2)
+        self.clearance = forest_clearance(nf.forest)
+
+    def evaluate(self, q):
+        ev = self.nf.evaluate(np.asarray(q, dtype=float).reshape(1, 2), order=2)
+        a = -np.asarray(ev.gradient, dtype=float).reshape(2)
+        H = np.asarray(ev.hessian, dtype=float).reshape(2, 2)
+        m2 = float(a @ a)
+        if not (m2 > 1e-24) or not np.isfinite(H).all():
+            return self._Eval(0.0, np.zeros(2))
+        grad = (-a[0] * H[1] + a[1] * H[0]) / m2
+        return self._Eval(math.atan2(a[1], a[0]), grad)
+
+
+class _FixedPlanMixin:
+    """No task adaptation: transitions keep their initial straight-line costs (never evaluated
+    by trees), and a discovered obstacle never re-plans the task (the potential or the path is
+    updated instead, see the subclasses)."""
+
+    def _evaluate(self, u, v, p) -> bool:  # noqa: ARG002 - the executive's signature
+        return False
+
+    def _on_map_change(self, upd) -> None:
+        before = self._need_plan
+        super()._on_map_change(upd)
+        if self._need_plan and not before and self.state is ExecutiveState.EXECUTING:
+            self._need_plan = False
+            self._path_hit()
+
+    def _path_hit(self) -> None:
+        """A changed obstacle meets the remainder of the current leg."""
+
+
+class NFExecutive(_FixedPlanMixin, Executive):
+    """Plain navigation function to each region of the initial plan (see the module doc)."""
+
+    def _set_leg(self, p, target) -> None:
+        c = self.world.regions[target].center
+        self.leg = (tuple(p), (float(c[0]), float(c[1]), 0.0))
+        self.wp, self._stalled, self.target = 1, 0, target
+        if self.state is not ExecutiveState.EXECUTING:
+            self._note(f"executing: next region {target}")
+        self.state = ExecutiveState.EXECUTING
+
+    def _field(self, wp):
+        key = ("nf", wp[:2], id(self.forest))
+        f = self._fields.get(key)
+        if f is None:
+            try:
+                f = PlainField(NavigationFunction(self.forest, goal=wp[:2]))
+            except NavigationError as err:
+                self._note(f"goal {np.round(wp[:2], 3).tolist()} not in free space ({err})")
+                return None
+            self._fields[key] = f
+        return f
+
+
+# --------------------------------------------------------------------------------------- RRT*
+def ompl_status() -> tuple[bool, str]:
+    """``(usable, detail)``: whether ``ompl``'s Python bindings import and solve a trivial query."""
+    try:
+        from ompl import base as ob, geometric as og, util as ou  # noqa: F401
+    except Exception as err:  # noqa: BLE001 - any import failure means "not available"
+        return False, f"import ompl failed: {type(err).__name__}: {err}"
+    try:
+        path = _rrt_star([(0.0, 0.0), (1.0, 1.0)], (0.1, 0.1), (0.9, 0.9), lambda x, y: True, 0.05)
+    except Exception as err:  # noqa: BLE001
+        return False, f"ompl imported but RRTstar failed: {type(err).__name__}: {err}"
+    if path is None:
+        return False, "ompl imported but RRTstar found no path in an empty square"
+    import ompl
+
+    return True, f"ompl {getattr(ompl, '__version__', '?')} ({ompl.__file__})"
+
+
+def _rrt_star(bounds, start, goal, valid, budget: float, resolution: float = 0.005):
+    """OMPL ``RRTstar`` in the plane (path-length objective, ``budget`` s), then OMPL's path
+    simplifier; the waypoints ``(N, 2)``, or ``None`` without an exact solution."""
+    from ompl import base as ob, geometric as og, util as ou
+
+    ou.setLogLevel(ou.LOG_WARN)
+    (x0, y0), (x1, y1) = bounds
+    space = ob.RealVectorStateSpace(2)
+    b = ob.RealVectorBounds(2)
+    b.setLow(0, x0), b.setHigh(0, x1), b.setLow(1, y0), b.setHigh(1, y1)
+    space.setBounds(b)
+    si = ob.SpaceInformation(space)
+    si.setStateValidityChecker(lambda s: bool(valid(s[0], s[1])))
+    si.setStateValidityCheckingResolution(resolution)
+    si.setup()
+    s, g = space.allocState(), space.allocState()
+    s[0], s[1], g[0], g[1] = float(start[0]), float(start[1]), float(goal[0]), float(goal[1])
+    pdef = ob.ProblemDefinition(si)
+    pdef.setStartAndGoalStates(s, g, 0.02)
+    pdef.setOptimizationObjective(ob.PathLengthOptimizationObjective(si))
+    planner = og.RRTstar(si)
+    planner.setProblemDefinition(pdef)
+    planner.setup()
+    planner.solve(float(budget))
+    if not pdef.hasExactSolution():
+        return None
+    path = pdef.getSolutionPath()
+    og.PathSimplifier(si).simplifyMax(path)
+    return np.array([(path.getState(i)[0], path.getState(i)[1]) for i in range(path.getStateCount())])
+
+
+class RRTStarExecutive(_FixedPlanMixin, Executive):
+    """OMPL RRT* path to each region of the initial plan, pure-pursuit path following.
+
+    Class attributes (documented in ``docs/evaluation.md``): ``budget`` s of RRT* per query
+    (doubled once when no exact solution is found), obstacles grown by ``radius + margin``,
+    pure pursuit with look-ahead ``lookahead`` m and speed ``v_max cos(alpha)``, turning in
+    place when the look-ahead point is more than 90 degrees off the heading.
+    """
+
+    budget = 1.0
+    margin = 0.05
+    lookahead = 0.25
+
+    def _valid_fn(self, p, margin):
+        r = self.radius + margin
+        rows = pack([inflate(o, r) for o in self.obstacles]) if self.obstacles else None
+        ws = pack([self.world.workspace.grow(-r)])
+        px, py = float(p[0]), float(p[1])
+        near = 0.1 + margin  # the robot may sit in the margin of a fresh estimate: let it leave
+
+        def valid(x, y):
+            xa, ya = np.array([x]), np.array([y])
+            if not beta_rows(ws, xa, ya)[0] < 0:
+                return False
+            if rows is None or (x - px) ** 2 + (y - py) ** 2 < near * near:
+                return True
+            return bool((beta_rows(rows, xa, ya) > 0).all())
+
+        return valid
+
+    def _set_leg(self, p, target) -> None:
+        c = self.world.regions[target].center
+        pts = self.world.workspace.boundary_points(256)
+        bounds = (tuple(pts.min(axis=0)), tuple(pts.max(axis=0)))
+        path = None
+        for margin, budget in ((self.margin, self.budget), (self.margin, 2 * self.budget), (0.0, 2 * self.budget)):
+            path = _rrt_star(bounds, p[:2], c, self._valid_fn(p, margin), budget)
+            if path is not None:
+                break
+        if path is None:
+            self._blocked(NoPlanError(f"RRT* found no path from the robot to {target}", ((START, target),)))
+            return
+        path[0] = p[:2]
+        self.leg = tuple((float(x), float(y), 0.0) for x, y in path)
+        self.wp, self._stalled, self.target, self._dirty = 1, 0, target, False
+        if self.state is not ExecutiveState.EXECUTING:
+            self._note(f"executing: next region {target}")
+        self.state = ExecutiveState.EXECUTING
+
+    def _path_hit(self) -> None:
+        self._dirty = True
+
+    def _command(self, p):
+        if getattr(self, "_dirty", False) and self.target is not None:
+            t0 = time.perf_counter()
+            self._set_leg(p, self.target)
+            dt = time.perf_counter() - t0
+            self.planning_time += dt
+            self.replan_times.append(dt)
+            self.replans += 1
+            if self.state is not ExecutiveState.EXECUTING:
+                return 0.0, 0.0
+        return self._pursue(p)
+
+    def _pursue(self, p):
+        """Pure pursuit along the leg: look-ahead point ``lookahead`` m beyond the projection."""
+        q = np.array(p[:2])
+        pts = np.array([w[:2] for w in self.leg])
+        # advance past segments whose end is behind us or reached
+        while self.wp < len(pts) - 1 and (np.linalg.norm(q - pts[self.wp]) < self.config.waypoint_tolerance):
+            self.wp += 1
+        a, b = pts[self.wp - 1], pts[self.wp]
+        ab = b - a
+        t = float(np.clip(np.dot(q - a, ab) / max(float(ab @ ab), 1e-12), 0.0, 1.0))
+        proj = a + t * ab
+        remaining, cur, k = self.lookahead, proj, self.wp
+        look = pts[-1]
+        while k < len(pts):
+            seg = pts[k] - cur
+            d = float(np.linalg.norm(seg))
+            if d >= remaining:
+                look = cur + seg * (remaining / d)
+                break
+            remaining -= d
+            cur, k = pts[k], k + 1
+        dx, dy = look - q
+        dist_goal = float(np.linalg.norm(pts[-1] - q))
+        alpha = math.atan2(math.sin(math.atan2(dy, dx) - p[2]), math.cos(math.atan2(dy, dx) - p[2]))
+        vmax, wmax = self.control.v_max, self.control.omega_max
+        if abs(alpha) > math.pi / 2:
+            return 0.0, math.copysign(wmax, alpha)
+        v = min(vmax, self.control.k_v * math.tanh(dist_goal)) * math.cos(alpha)
+        L = max(float(np.hypot(dx, dy)), 1e-6)
+        w = 2.0 * v * math.sin(alpha) / L
+        if abs(w) > wmax:  # keep the curvature: slow down instead of cutting the corner
+            v *= wmax / abs(w)
+            w = math.copysign(wmax, w)
+        return v, w
+
+
+# ------------------------------------------------------------------------------ closed loop
+def chatter(poses, dt: float) -> float:
+    """Turn-rate chatter: sign flips of the *executed* turn rate between consecutive control
+    periods (both ``|omega| > 0.05`` rad/s), per metre travelled. Computed from the recorded
+    poses, the same way for every method."""
+    if len(poses) < 3:
+        return 0.0
+    P = np.asarray(poses, dtype=float)
+    w = np.arctan2(np.sin(np.diff(P[:, 2])), np.cos(np.diff(P[:, 2]))) / dt
+    dist = float(np.linalg.norm(np.diff(P[:, :2], axis=0), axis=1).sum())
+    on = np.abs(w) > 0.05
+    flips = on[1:] & on[:-1] & (np.sign(w[1:]) != np.sign(w[:-1]))
+    return int(flips.sum()) / dist if dist > 1e-9 else 0.0
+
+
+def drive(cls, world, task=None, *, seed: int = 0, max_time: float = 300.0,
+          config: ExecutiveConfig | None = None) -> dict:
+    """Closed loop of an :class:`~tamp.Executive` subclass with the simulator; the fields of
+    :func:`tamp.run.run_mission` (same definitions) plus ``trajectory`` (poses)."""
+    from service.sim import Simulator
+
+    cfg = config or ExecutiveConfig()
+    ex = cls(world, task, config=cfg)
+    sim = Simulator(world, seed=seed)
+    period = 1.0 / world.lidar.rate_hz
+    next_scan, ticks, omegas, poses = 0.0, [], [], []
+    bad, blocked_since, completed = 0, None, False
+    vmax, wmax = ex.control.v_max, ex.control.omega_max
+    while sim.time < max_time - 1e-9:
+        scan = None
+        if sim.time >= next_scan - 1e-9:
+            scan = sim.scan_message()
+            next_scan += period
+        res = ex.tick(sim.pose_message(), scan=scan, now=sim.time)
+        ticks.append(res.compute)
+        v, w = res.v, res.omega
+        if not (math.isfinite(v) and math.isfinite(w) and abs(v) <= vmax + 1e-12 and abs(w) <= wmax + 1e-12):
+            bad += 1
+        if ex.state is ExecutiveState.DONE or (not ex._cosafe and ex.accepting_visits >= 2):
+            completed = True
+            break
+        if ex.state is ExecutiveState.BLOCKED:
+            blocked_since = sim.time if blocked_since is None else blocked_since
+            if sim.time - blocked_since >= cfg.blocked_timeout:
+                break
+        else:
+            blocked_since = None
+        if v != 0.0:
+            omegas.append(w)
+        poses.append(tuple(sim.pose))
+        sim.step((v, w))
+    m = sim.metrics
+    rt = ex.replan_times
+    t = np.asarray(ticks) if ticks else np.zeros(1)
+    return {
+        "world": world.name, "completed": completed, "collisions": len(m.collisions),
+        "distance": float(m.distance), "execution_time": float(sim.time),
+        "planning_time": float(ex.planning_time), "max_replan_time": float(max(rt)) if rt else 0.0,
+        "replans": len(rt), "visited": list(ex.visited), "oscillation": _oscillation(omegas, m.distance),
+        "state": ex.state.value, "message": ex.message, "initial_planning_time": float(ex.initial_time or 0.0),
+        "tick_median": float(np.median(t)), "tick_p95": float(np.percentile(t, 95)),
+        "bad_commands": bad, "min_clearance": float(m.min_clearance), "map_changes": ex.map_changes,
+        "trajectory": poses,
+    }
+
+
+_CLASSES = {"OHPF": OHPFExecutive, "NF": NFExecutive, "RRT*": RRTStarExecutive}
+
+
+def run_method(method: str, world, task=None, *, seed: int = 0, max_time: float = 300.0) -> dict:
+    """Run ``method`` (one of :data:`METHODS` but ``oracle``) on ``world``'s mission (or ``task``)."""
+    if method == "HT":
+        r = run_mission(world, task, seed=seed, max_time=max_time, record=True)
+    elif method in _CLASSES:
+        r = drive(_CLASSES[method], world, task, seed=seed, max_time=max_time)
+    else:
+        raise ValueError(f"unknown method {method!r}, must be one of {', '.join(m for m in METHODS if m != 'oracle')}")
+    r["chatter"] = chatter(r["trajectory"], 1.0 / world.lidar.rate_hz)
+    return r
+
+
+# ------------------------------------------------------------------------------------ oracle
+def oracle_tour(world, sequence, visit_all: bool = False) -> tuple[float | None, list[str]]:
+    """Shortest full-knowledge tour (``benchmarks.executive.full_knowledge_tour``) through the
+    region ``sequence``; with ``visit_all`` the shortest over every order of the distinct
+    regions of ``sequence`` (a lower bound for any method on a visit-all mission). Returns the
+    length (``None`` when no order has a path) and the order used."""
+    from benchmarks.executive import full_knowledge_tour
+
+    seq = list(sequence)
+    orders = [seq]
+    if visit_all:
+        distinct = list(dict.fromkeys(seq))
+        if len(distinct) <= 6:
+            orders = [list(o) for o in itertools.permutations(distinct)]
+    best, best_order = None, seq
+    for order in orders:
+        d = full_knowledge_tour(world, order)
+        if d is not None and (best is None or d < best):
+            best, best_order = d, order
+    return best, best_order
