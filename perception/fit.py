@@ -128,6 +128,66 @@ def _residuals(p: np.ndarray, q: np.ndarray, free: np.ndarray, w_free: float, re
     return np.concatenate((r, reg))
 
 
+def _gauge_jac(u, v, p):
+    """Gauge ``g`` at local coordinates ``(u, v)`` of parameters ``p`` and its exact derivatives
+    ``(N, 6)`` with respect to ``p = (cx, cy, log a, log b, theta, s)``, plus ``rho = |(u, v)|``
+    and its derivatives."""
+    a, b, s = math.exp(p[2]), math.exp(p[3]), p[5]
+    c, sn = math.cos(p[4]), math.sin(p[4])
+    x, y = u / a, v / b
+    x2, y2 = x * x, y * y
+    k = 2.0 - 4.0 * s * s
+    R = np.sqrt(np.maximum(x2 * x2 + y2 * y2 + k * x2 * y2, 1e-300))
+    B = 0.5 * (x2 + y2 + R)
+    g = np.sqrt(np.maximum(B, 1e-300))
+    dBx = x + (2.0 * x2 * x + k * x * y2) / (2.0 * R)
+    dBy = y + (2.0 * y2 * y + k * x2 * y) / (2.0 * R)
+    dBs = -2.0 * s * x2 * y2 / R
+    # chain rule through u, v (p0, p1, p4), a = e^p2, b = e^p3
+    du = np.array([-c, -sn, 0.0, 0.0])  # du/d(p0, p1) ; du/dp4 = v
+    dv = np.array([sn, -c, 0.0, 0.0])  # dv/d(p0, p1) ; dv/dp4 = -u
+    dg = np.empty((len(u), 6))
+    gx, gy = dBx / (2.0 * g * a), dBy / (2.0 * g * b)  # dg/du, dg/dv
+    dg[:, 0] = gx * du[0] + gy * dv[0]
+    dg[:, 1] = gx * du[1] + gy * dv[1]
+    dg[:, 2] = -dBx * x / (2.0 * g)
+    dg[:, 3] = -dBy * y / (2.0 * g)
+    dg[:, 4] = gx * v - gy * u
+    dg[:, 5] = dBs / (2.0 * g)
+    rho = np.maximum(np.hypot(u, v), 1e-300)
+    drho = np.zeros((len(u), 6))
+    drho[:, 0] = (u * du[0] + v * dv[0]) / rho
+    drho[:, 1] = (u * du[1] + v * dv[1]) / rho
+    return g, dg, np.hypot(u, v), drho
+
+
+def _residuals_jac(p: np.ndarray, q: np.ndarray, free: np.ndarray, w_free: float, ref=None) -> np.ndarray:
+    """Exact Jacobian ``(len(residuals), 6)`` of :func:`_residuals` (clamps differentiate to 0)."""
+    u, v = _local(p, q)
+    g, dg, rho, drho = _gauge_jac(u, v, p)
+    clamp = g < 1e-6
+    g = np.maximum(g, 1e-6)
+    dg[clamp] = 0.0
+    J = [drho * (1.0 - 1.0 / g)[:, None] + (rho / (g * g))[:, None] * dg]
+    if len(free):
+        fu, fv = _local(p, free)
+        gf, dgf, rf, drf = _gauge_jac(fu, fv, p)
+        active = gf < 1.0  # 1/gf - 1 > 0 (the clamp at 0.2 lies inside this set)
+        low = gf < 0.2
+        gf = np.maximum(gf, 0.2)
+        dgf[low] = 0.0
+        Jf = w_free * (drf * np.maximum(1.0 / gf - 1.0, 0.0)[:, None] - (rf / (gf * gf))[:, None] * dgf)
+        Jf[~active] = 0.0
+        J.append(Jf)
+    if ref is not None:
+        Jr = np.zeros((2, 6))
+        a, b = math.exp(p[2]), math.exp(p[3])
+        Jr[0, 2] = ref[2] * a if a > ref[0] else 0.0
+        Jr[1, 3] = ref[2] * b if b > ref[1] else 0.0
+        J.append(Jr)
+    return np.concatenate(J)
+
+
 def rect_error(points: np.ndarray) -> float:
     """RMS distance of ``points (N, 2)`` to the boundary of their minimum-area rectangle."""
     if len(points) < 3:
@@ -204,8 +264,8 @@ def _solve(seed: np.ndarray, q: np.ndarray, free: np.ndarray, cfg: PerceptionCon
         # extents beyond the seed's (the rectangle of the points, with the unseen minimum) are
         # penalised: the data does not constrain the unseen side, the estimate stays small there
         ref = (math.exp(x0[2]), math.exp(x0[3]), 0.1 * math.sqrt(len(q)))
-        res = least_squares(_residuals, x0, bounds=(lo, hi), args=(q, free, 1.0, ref), x_scale=scale,
-                            method="trf", max_nfev=20, xtol=1e-6, ftol=1e-6)
+        res = least_squares(_residuals, x0, jac=_residuals_jac, bounds=(lo, hi), args=(q, free, 1.0, ref),
+                            x_scale=scale, method="trf", max_nfev=20, xtol=1e-6, ftol=1e-6)
     except (ValueError, np.linalg.LinAlgError):
         return None
     if not np.all(np.isfinite(res.x)):

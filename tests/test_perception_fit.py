@@ -158,3 +158,21 @@ def test_fit_rejects_bad_arrays():
         fit_squircle(np.array([[0.0, 0.0], [np.nan, 1.0], [1.0, 1.0]]))
     with pytest.raises(ScanError, match="views: expected 3 rows"):
         fit_squircle(np.array([[0.0, 0.0], [0.5, 1.0], [1.0, 1.0]]), views=np.ones((2, 2)))
+
+
+def test_residual_jacobian_matches_finite_differences():
+    """The least-squares fit uses the exact Jacobian of its residuals (radial errors, free-space
+    penalties, extent regularisation); check it against central differences."""
+    from perception.fit import _residuals, _residuals_jac
+
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        p = np.array([0.3, -0.2, math.log(0.6), math.log(0.2), 0.4, 0.8]) + rng.normal(scale=0.05, size=6)
+        q = rng.normal(scale=0.7, size=(40, 2))
+        free = rng.normal(scale=0.5, size=(15, 2))
+        ref = (0.5, 0.25, 2.0)
+        J = _residuals_jac(p, q, free, 1.0, ref)
+        h = 1e-6
+        Jn = np.stack([(_residuals(p + h * e, q, free, 1.0, ref) - _residuals(p - h * e, q, free, 1.0, ref)) / (2 * h)
+                       for e in np.eye(6)], axis=1)
+        assert np.allclose(J, Jn, rtol=1e-5, atol=1e-6 * np.abs(Jn).max())
