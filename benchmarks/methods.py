@@ -24,9 +24,8 @@ between two copies of the surrounding machinery:
 ``oracle`` :func:`oracle_tour`: shortest collision-free tour with full knowledge (distance only).
 =========  ===========================================================================
 
-:func:`run_method` runs one method on one world and returns the :func:`tamp.run.run_mission`
-fields plus the trajectory; :func:`drive` is the closed loop for the executive subclasses (the
-same loop as ``run_mission``, which cannot take another executive class).
+:func:`run_method` runs one method on one world through :func:`tamp.run.run_mission` (the
+baselines as its ``executive_cls``) and returns its fields plus the trajectory.
 """
 
 from __future__ import annotations
@@ -43,13 +42,12 @@ from navigation.geometry import beta_rows, pack
 from navigation.potential import NavigationFunction
 from perception.fit import inflate
 from tamp.errors import NoPlanError
-from tamp.executive import Executive, ExecutiveConfig, ExecutiveState
+from tamp.executive import Executive, ExecutiveState
 from tamp.navmap import START
-from tamp.roadmap import segments_clear
-from tamp.run import _oscillation, run_mission
+from tamp.run import run_mission
 
 __all__ = ["METHODS", "ADAPTATION", "OHPFExecutive", "NFExecutive", "RRTStarExecutive", "PlainField",
-           "ompl_status", "drive", "run_method", "oracle_tour", "chatter"]
+           "ompl_status", "run_method", "oracle_tour", "chatter"]
 
 METHODS = ("HT", "OHPF", "NF", "RRT*", "oracle")
 #: the paper's "Adaptation" column: does the task plan adapt to what the robot discovers
@@ -311,57 +309,6 @@ def chatter(poses, dt: float) -> float:
     return int(flips.sum()) / dist if dist > 1e-9 else 0.0
 
 
-def drive(cls, world, task=None, *, seed: int = 0, max_time: float = 300.0,
-          config: ExecutiveConfig | None = None) -> dict:
-    """Closed loop of an :class:`~tamp.Executive` subclass with the simulator; the fields of
-    :func:`tamp.run.run_mission` (same definitions) plus ``trajectory`` (poses)."""
-    from service.sim import Simulator
-
-    cfg = config or ExecutiveConfig()
-    ex = cls(world, task, config=cfg)
-    sim = Simulator(world, seed=seed)
-    period = 1.0 / world.lidar.rate_hz
-    next_scan, ticks, omegas, poses = 0.0, [], [], []
-    bad, blocked_since, completed = 0, None, False
-    vmax, wmax = ex.control.v_max, ex.control.omega_max
-    while sim.time < max_time - 1e-9:
-        scan = None
-        if sim.time >= next_scan - 1e-9:
-            scan = sim.scan_message()
-            next_scan += period
-        res = ex.tick(sim.pose_message(), scan=scan, now=sim.time)
-        ticks.append(res.compute)
-        v, w = res.v, res.omega
-        if not (math.isfinite(v) and math.isfinite(w) and abs(v) <= vmax + 1e-12 and abs(w) <= wmax + 1e-12):
-            bad += 1
-        if ex.state is ExecutiveState.DONE or (not ex._cosafe and ex.accepting_visits >= 2):
-            completed = True
-            break
-        if ex.state is ExecutiveState.BLOCKED:
-            blocked_since = sim.time if blocked_since is None else blocked_since
-            if sim.time - blocked_since >= cfg.blocked_timeout:
-                break
-        else:
-            blocked_since = None
-        if v != 0.0:
-            omegas.append(w)
-        poses.append(tuple(sim.pose))
-        sim.step((v, w))
-    m = sim.metrics
-    rt = ex.replan_times
-    t = np.asarray(ticks) if ticks else np.zeros(1)
-    return {
-        "world": world.name, "completed": completed, "collisions": len(m.collisions),
-        "distance": float(m.distance), "execution_time": float(sim.time),
-        "planning_time": float(ex.planning_time), "max_replan_time": float(max(rt)) if rt else 0.0,
-        "replans": len(rt), "visited": list(ex.visited), "oscillation": _oscillation(omegas, m.distance),
-        "state": ex.state.value, "message": ex.message, "initial_planning_time": float(ex.initial_time or 0.0),
-        "tick_median": float(np.median(t)), "tick_p95": float(np.percentile(t, 95)),
-        "bad_commands": bad, "min_clearance": float(m.min_clearance), "map_changes": ex.map_changes,
-        "trajectory": poses,
-    }
-
-
 _CLASSES = {"OHPF": OHPFExecutive, "NF": NFExecutive, "RRT*": RRTStarExecutive}
 
 
@@ -370,7 +317,7 @@ def run_method(method: str, world, task=None, *, seed: int = 0, max_time: float 
     if method == "HT":
         r = run_mission(world, task, seed=seed, max_time=max_time, record=True)
     elif method in _CLASSES:
-        r = drive(_CLASSES[method], world, task, seed=seed, max_time=max_time)
+        r = run_mission(world, task, seed=seed, max_time=max_time, record=True, executive_cls=_CLASSES[method])
     else:
         raise ValueError(f"unknown method {method!r}, must be one of {', '.join(m for m in METHODS if m != 'oracle')}")
     r["chatter"] = chatter(r["trajectory"], 1.0 / world.lidar.rate_hz)

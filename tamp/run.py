@@ -42,7 +42,8 @@ def _oscillation(omegas, distance: float) -> float:
 
 
 def run_mission(world, task: str | None = None, known: bool = False, seed: int = 0, max_time: float = 300.0,
-                config: ExecutiveConfig | None = None, progress=None, record: bool = False) -> dict:
+                config: ExecutiveConfig | None = None, progress=None, record: bool = False,
+                executive_cls: type[Executive] = Executive) -> dict:
     """Run ``world``'s mission (or ``task``) in the simulator with the :class:`Executive`.
 
     Parameters
@@ -61,6 +62,9 @@ def run_mission(world, task: str | None = None, known: bool = False, seed: int =
         Called with a line on every state or target change.
     record : bool
         Also return the trajectory (``"trajectory"``: poses) and commands.
+    executive_cls : type
+        :class:`Executive` or a subclass (the evaluation suite's baselines), constructed as
+        ``executive_cls(world, task, known=known, config=config)``.
 
     Returns
     -------
@@ -89,7 +93,7 @@ def run_mission(world, task: str | None = None, known: bool = False, seed: int =
     if not (math.isfinite(max_time) and max_time > 0):
         raise ValueError(f"max_time must be a positive number of seconds, got {max_time!r}")
     cfg = config or ExecutiveConfig()
-    ex = Executive(world, task, known=known, config=cfg)
+    ex = executive_cls(world, task, known=known, config=cfg)
     sim = Simulator(world, seed=seed)
     period = 1.0 / world.lidar.rate_hz
     next_scan = 0.0
