@@ -36,6 +36,7 @@ from navigation.errors import WorldError
 from navigation.world import Region
 from perception import ingest
 from perception.errors import ScanError
+from tamp.executive import ExecutiveState
 
 from .errors import MessageError, TaskErrorCode, TaskRejected
 
@@ -62,26 +63,8 @@ MAX_PAYLOAD = 4 * 1024 * 1024
 """Largest accepted input payload (bytes); a 1080-beam scan is about 9 KB."""
 
 
-class ServiceState(str, Enum):
-    """``status.state`` values of the bus contract."""
-
-    IDLE = "idle"
-    PLANNING = "planning"
-    EXECUTING = "executing"
-    DONE = "done"
-    BLOCKED = "blocked"
-    ERROR = "error"
-
-    @classmethod
-    def parse(cls, value) -> "ServiceState":
-        """The state named ``value``; raises ``ValueError`` listing the valid ones."""
-        if isinstance(value, cls):
-            return value
-        try:
-            return cls(getattr(value, "value", value))
-        except ValueError:
-            valid = ", ".join(repr(s.value) for s in cls)
-            raise ValueError(f"{value!r} is not a valid state, must be one of {valid}") from None
+#: ``status.state`` values of the bus contract: the executive's states.
+ServiceState = ExecutiveState
 
 
 @dataclass(frozen=True, slots=True)

@@ -97,7 +97,7 @@ log = logging.getLogger("tamp.executive")
 
 
 class ExecutiveState(str, enum.Enum):
-    """FORMATS.md ``status.state``."""
+    """FORMATS.md ``status.state`` (the service publishes these values)."""
 
     IDLE = "idle"
     PLANNING = "planning"
@@ -105,6 +105,17 @@ class ExecutiveState(str, enum.Enum):
     DONE = "done"
     BLOCKED = "blocked"
     ERROR = "error"
+
+    @classmethod
+    def parse(cls, value) -> "ExecutiveState":
+        """The state named ``value``; raises ``ValueError`` listing the valid ones."""
+        if isinstance(value, cls):
+            return value
+        try:
+            return cls(getattr(value, "value", value))
+        except ValueError:
+            valid = ", ".join(repr(s.value) for s in cls)
+            raise ValueError(f"{value!r} is not a valid state, must be one of {valid}") from None
 
 
 @dataclass(frozen=True, slots=True)
