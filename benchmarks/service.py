@@ -20,7 +20,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import signal
 import socket
 import subprocess
 import sys
@@ -33,6 +32,7 @@ import numpy as np
 import zenoh
 
 import navigation
+from service.cli import stop_child
 from service.node import zenoh_config
 from service.sim import Simulator
 
@@ -104,11 +104,7 @@ def run_case(world_name: str, rate: float, seconds: float, record: bool) -> dict
         pub_scan.undeclare()
     finally:
         sess.close()
-        proc.send_signal(signal.SIGTERM)
-        try:
-            proc.wait(15)
-        except subprocess.TimeoutExpired:
-            proc.kill()
+        stop_child(proc, 15.0)
         tmp.cleanup()
     stamps = sorted(sent)
     lat = np.array([1e3 * (got[s] - sent[s]) for s in stamps if s in got])

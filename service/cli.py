@@ -27,7 +27,7 @@ import time
 from collections import deque
 from pathlib import Path
 
-__all__ = ["main", "build_parser"]
+__all__ = ["main", "build_parser", "stop_child"]
 
 EPILOG = """environment:
   RUST_LOG        Zenoh's own log filter (e.g. RUST_LOG=zenoh=info); Zenoh is quiet by default.
@@ -210,13 +210,7 @@ def _cmd_demo(a) -> int:
             node.run(a.duration / a.speed + 30.0, until=progress)
             time.sleep(min(0.5, 2.0 / a.speed))  # let the simulator's last metrics arrive
         finally:
-            if sim.poll() is None:
-                sim.send_signal(signal.SIGTERM)
-                try:
-                    sim.wait(10)
-                except subprocess.TimeoutExpired:
-                    sim.kill()
-                    sim.wait()
+            stop_child(sim)
             sub.undeclare()
     summary = brain.summary()
     m = json.loads(metrics[-1]) if metrics else {}
@@ -248,6 +242,18 @@ def _cmd_demo(a) -> int:
               f"p95 {f(out['tick_p95_ms'], '.1f')} ms, {out['overruns']} overruns, {out['warnings']} input warnings"
               + (f"\n  recording      {out['record']}" if out["record"] else ""))
     return 0
+
+
+def stop_child(proc: subprocess.Popen, timeout: float = 10.0) -> None:
+    """Stop a child process: SIGTERM, then SIGKILL if it has not exited after ``timeout`` s."""
+    if proc.poll() is not None:
+        return
+    proc.send_signal(signal.SIGTERM)
+    try:
+        proc.wait(timeout)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
 
 
 def main(argv=None) -> int:
