@@ -153,8 +153,7 @@ class Squircle:
     def beta(self, q) -> np.ndarray:
         """Obstacle function (eq. 4): ``< 0`` inside, ``0`` on the boundary, ``> 0`` outside."""
         pts, single = as_points(q)
-        x, y = Jet.variables(pts, 0)
-        return restore(beta_jet(self.packed(), x, y).v.copy(), single)
+        return restore(beta_rows(_packed_row(self), pts[:, 0], pts[:, 1]), single)
 
     def gradient(self, q) -> np.ndarray:
         """Exact gradient of :meth:`beta`, shape ``(2,)`` or ``(N, 2)`` (0 at the centre)."""
@@ -315,6 +314,14 @@ def beta_rows(P: np.ndarray, x, y) -> np.ndarray:
     u2, w2 = u * u, w * w
     root = np.sqrt(np.maximum(u2 * u2 + w2 * w2 + (2.0 - 4.0 * P[..., S] ** 2) * u2 * w2, 0.0))
     return 0.5 * (u2 + w2 + root) - 1.0
+
+
+@functools.lru_cache(maxsize=8192)
+def _packed_row(sq: Squircle) -> np.ndarray:
+    """:meth:`Squircle.packed` (memoised, read-only)."""
+    row = pack([sq])[0]
+    row.flags.writeable = False
+    return row
 
 
 @functools.lru_cache(maxsize=8192)
@@ -519,6 +526,7 @@ def clear_geometry_cache() -> None:
     _grow.cache_clear()
     _sample_table.cache_clear()
     _perimeter.cache_clear()
+    _packed_row.cache_clear()
 
 
 @functools.lru_cache(maxsize=8192)
