@@ -26,7 +26,7 @@ import numpy as np
 
 from .errors import ScanError
 
-__all__ = ["Scan", "Pose", "parse_pose", "parse_scan", "parse_points", "as_message"]
+__all__ = ["Scan", "Pose", "parse_pose", "parse_scan", "parse_points", "as_message", "decode_object"]
 
 Pose = tuple[float, float, float]
 
@@ -67,21 +67,34 @@ class Scan:
         return np.array(self.pose[:2])
 
 
-def as_message(msg, kind: str) -> Mapping:
-    """A message as a mapping: accepts a mapping or its UTF-8 JSON text (``str``/``bytes``)."""
-    if isinstance(msg, (bytes, bytearray)):
+def decode_object(payload, fail) -> Mapping:
+    """A bus payload as a mapping: a mapping as is, or its UTF-8 JSON text (``str``/``bytes``).
+
+    The one decoder of the project's JSON messages (perception, the simulator's ``cmd_vel``, the
+    service's bus adapter). ``fail(reason)`` builds the exception to raise; ``reason`` reads
+    ``"is not UTF-8 (...)"``, ``"is not JSON: ..."`` (nesting too deep included) or ``"must be a
+    JSON object, got <type>"``.
+    """
+    if isinstance(payload, (bytes, bytearray)):
         try:
-            msg = msg.decode("utf-8")
+            payload = bytes(payload).decode("utf-8")
         except UnicodeDecodeError as err:
-            raise ScanError(f"{kind} message is not UTF-8 ({err.reason})") from None
-    if isinstance(msg, str):
+            raise fail(f"is not UTF-8 ({err.reason} at byte {err.start})") from None
+    if isinstance(payload, str):
         try:
-            msg = json.loads(msg)
+            payload = json.loads(payload)
         except json.JSONDecodeError as err:
-            raise ScanError(f"{kind} message is not JSON: {err.msg} at char {err.pos}") from None
-    if not isinstance(msg, Mapping):
-        raise ScanError(f"{kind} message must be an object, got {type(msg).__name__}")
-    return msg
+            raise fail(f"is not JSON: {err.msg} at char {err.pos}") from None
+        except RecursionError:
+            raise fail("is not JSON: nested too deeply") from None
+    if not isinstance(payload, Mapping):
+        raise fail(f"must be a JSON object, got {type(payload).__name__}")
+    return payload
+
+
+def as_message(msg, kind: str) -> Mapping:
+    """A ``kind`` message as a mapping (:func:`decode_object`); :class:`ScanError` otherwise."""
+    return decode_object(msg, lambda reason: ScanError(f"{kind} message {reason}"))
 
 
 def _number(msg: Mapping, key: str, kind: str) -> float:

@@ -139,21 +139,7 @@ def decode(payload, key: str) -> Mapping:
         payload = payload.to_bytes()
     if isinstance(payload, (bytes, bytearray, str)) and len(payload) > MAX_PAYLOAD:
         raise MessageError(key, f"payload of {len(payload)} bytes exceeds the {MAX_PAYLOAD} byte limit")
-    if isinstance(payload, (bytes, bytearray)):
-        try:
-            payload = bytes(payload).decode("utf-8")
-        except UnicodeDecodeError as err:
-            raise MessageError(key, f"payload is not UTF-8 ({err.reason} at byte {err.start})") from None
-    if isinstance(payload, str):
-        try:
-            payload = json.loads(payload)
-        except json.JSONDecodeError as err:
-            raise MessageError(key, f"payload is not JSON: {err.msg} at char {err.pos}") from None
-        except RecursionError:
-            raise MessageError(key, "payload is not JSON: nested too deeply") from None
-    if not isinstance(payload, Mapping):
-        raise MessageError(key, f"expected a JSON object, got {type(payload).__name__}")
-    return payload
+    return ingest.decode_object(payload, lambda reason: MessageError(key, f"payload {reason}"))
 
 
 def _from_scan_error(key: str, err: ScanError) -> MessageError:

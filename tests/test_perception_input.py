@@ -165,3 +165,16 @@ def test_config_rules_and_overrides():
         PerceptionConfig.from_lidar(world.lidar, link=-1.0)
     # the breakpoint grows with range
     assert cfg.breakpoint(1.0) > cfg.breakpoint(0.5) > 0
+
+
+def test_deeply_nested_json_is_refused_not_a_crash():
+    """Every JSON decoder of the project is perception.ingest.decode_object: too deep a nesting
+    is a clear error for scans and for the simulator's cmd_vel alike."""
+    from navigation import load_world
+    from service.sim import CommandError, Simulator
+
+    deep = "[" * 100_000 + "]" * 100_000
+    with pytest.raises(ScanError, match="nested too deeply"):
+        parse_points(deep)
+    with pytest.raises(CommandError, match="nested too deeply"):
+        Simulator(load_world("simple"), seed=0).apply_cmd_vel(deep)

@@ -17,14 +17,13 @@ Stamps are simulated seconds (``Simulator.time``).
 
 from __future__ import annotations
 
-import json
 import math
-from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from navigation.world import World, load_world
+from perception.ingest import decode_object
 
 from .collision import WORKSPACE, ClearanceMap
 from .errors import CollisionStartError, CommandError, PoseError, SimulatorError
@@ -303,18 +302,7 @@ class Simulator:
             Not a JSON object, a field missing, not a number (booleans are refused) or not
             finite; ``field`` names it. The held command is then unchanged.
         """
-        if isinstance(message, (bytes, bytearray)):
-            try:
-                message = message.decode("utf-8")
-            except UnicodeDecodeError as err:
-                raise CommandError(f"cmd_vel: payload is not UTF-8 ({err})") from err
-        if isinstance(message, str):
-            try:
-                message = json.loads(message)
-            except json.JSONDecodeError as err:
-                raise CommandError(f"cmd_vel: payload is not JSON ({err})") from err
-        if not isinstance(message, Mapping):
-            raise CommandError(f"cmd_vel: expected an object {{stamp, v, omega}}, got {type(message).__name__}")
+        message = decode_object(message, lambda reason: CommandError(f"cmd_vel: payload {reason}"))
         for key in ("stamp", "v", "omega"):
             if key not in message:
                 raise CommandError(f"cmd_vel: missing field {key!r}", key)
