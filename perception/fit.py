@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import cv2
 import numpy as np
@@ -188,35 +189,61 @@ def _residuals_jac(p: np.ndarray, q: np.ndarray, free: np.ndarray, w_free: float
     return np.concatenate(J)
 
 
+class _Rect(NamedTuple):
+    """Minimum-area rectangle of a point set (OpenCV ``minAreaRect``): centre, extents, angle."""
+
+    cx: float
+    cy: float
+    w: float
+    h: float
+    t: float
+
+    @classmethod
+    def of(cls, points: np.ndarray) -> "_Rect":
+        (cx, cy), (w, h), ang = cv2.minAreaRect(points.astype(np.float32))
+        return cls(float(cx), float(cy), float(w), float(h), math.radians(ang))
+
+    def local_abs(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``|u|, |v|``: distances of ``q (N, 2)`` from the centre along the rectangle's axes."""
+        c, s = math.cos(self.t), math.sin(self.t)
+        dx, dy = q[:, 0] - self.cx, q[:, 1] - self.cy
+        return np.abs(dx * c + dy * s), np.abs(dy * c - dx * s)
+
+    def error(self, points: np.ndarray) -> float:
+        """RMS distance of ``points`` inside the rectangle to its boundary."""
+        u, v = self.local_abs(points)
+        d = np.maximum(np.minimum(self.w / 2 - u, self.h / 2 - v), 0.0)
+        return float(np.sqrt(np.mean(d * d)))
+
+    def free_inside(self, free, margin: float) -> int:
+        """Free points deeper than ``margin`` inside the rectangle."""
+        if free is None or not len(free):
+            return 0
+        u, v = self.local_abs(free)
+        return int(np.count_nonzero((u < self.w / 2 - margin) & (v < self.h / 2 - margin)))
+
+
 def rect_error(points: np.ndarray) -> float:
     """RMS distance of ``points (N, 2)`` to the boundary of their minimum-area rectangle."""
     if len(points) < 3:
         return 0.0
-    (cx, cy), (w, h), ang = cv2.minAreaRect(points.astype(np.float32))
-    t = math.radians(ang)
-    c, s = math.cos(t), math.sin(t)
-    dx, dy = points[:, 0] - cx, points[:, 1] - cy
-    u, v = np.abs(dx * c + dy * s), np.abs(dy * c - dx * s)
-    d = np.maximum(np.minimum(w / 2 - u, h / 2 - v), 0.0)
-    return float(np.sqrt(np.mean(d * d)))
+    return _Rect.of(points).error(points)
 
 
-def _free_inside(points: np.ndarray, free: np.ndarray, margin: float) -> int:
-    """Free points deeper than ``margin`` inside the minimum-area rectangle of ``points``."""
-    if len(points) < 3 or free is None or not len(free):
-        return 0
-    (cx, cy), (w, h), ang = cv2.minAreaRect(points.astype(np.float32))
-    t = math.radians(ang)
-    c, s = math.cos(t), math.sin(t)
-    dx, dy = free[:, 0] - cx, free[:, 1] - cy
-    u, v = np.abs(dx * c + dy * s), np.abs(dy * c - dx * s)
-    return int(np.count_nonzero((u < w / 2 - margin) & (v < h / 2 - margin)))
+def _rect_test(points: np.ndarray, free, margin: float) -> tuple[float, int, _Rect]:
+    """``rect_error``, the free points deeper than ``margin`` inside the rectangle (both 0 below
+    3 points), and the rectangle, from one ``minAreaRect`` of the (non-empty) ``points``."""
+    r = _Rect.of(points) if len(points) else _Rect(0.0, 0.0, 0.0, 0.0, 0.0)
+    if len(points) < 3:
+        return 0.0, 0, r
+    return r.error(points), r.free_inside(free, margin), r
 
 
 def _piece_cost(points: np.ndarray, free, margin: float) -> float:
     """Decomposition cost of a piece: ``n rect_error`` plus ``margin / 2`` per free point its
     rectangle would swallow (free space must stay free)."""
-    return len(points) * rect_error(points) + 0.5 * margin * _free_inside(points, free, margin)
+    e, n_free, _ = _rect_test(points, free, margin)
+    return len(points) * e + 0.5 * margin * n_free
 
 
 def _subsample(a: np.ndarray, n: int) -> np.ndarray:
@@ -427,10 +454,9 @@ def _check(a, name: str) -> np.ndarray:
 
 
 def _best_cut(points: np.ndarray, min_piece: int, free=None, margin: float = 0.04):
-    (cx, cy), _, ang = cv2.minAreaRect(points.astype(np.float32))
-    t = math.radians(ang)
-    c, s = math.cos(t), math.sin(t)
-    dx, dy = points[:, 0] - cx, points[:, 1] - cy
+    r = _Rect.of(points)
+    c, s = math.cos(r.t), math.sin(r.t)
+    dx, dy = points[:, 0] - r.cx, points[:, 1] - r.cy
     best = None
     for coord in (dx * c + dy * s, dy * c - dx * s):
         for qt in np.linspace(0.1, 0.9, 17):
@@ -476,10 +502,8 @@ def _merge_parts(points: np.ndarray, parts: list[np.ndarray], cfg: PerceptionCon
                 d, _ = trees[a].query(points[parts[b]], distance_upper_bound=cfg.link)
                 if not np.any(np.isfinite(d)):
                     continue
-                u = points[np.concatenate((parts[a], parts[b]))]
-                e = rect_error(u)
-                if (e <= cfg.split_tol and _free_inside(u, free, cfg.free_cell) == 0
-                        and (best is None or e < best[0])):
+                e, n_free, _ = _rect_test(points[np.concatenate((parts[a], parts[b]))], free, cfg.free_cell)
+                if e <= cfg.split_tol and n_free == 0 and (best is None or e < best[0]):
                     best = (e, a, b)
         if best is None:
             break
@@ -599,12 +623,11 @@ def _merge_runs(points: np.ndarray, parts: list[np.ndarray], cfg: PerceptionConf
     if len(parts) <= 1:
         return parts
     alive = dict(enumerate(parts))
-    trees = {i: cKDTree(points[p]) for i, p in alive.items()}
-    gap: dict[tuple[int, int], float] = {}
-    keys = list(alive)
-    for x, a in enumerate(keys):
-        for b in keys[x + 1:]:
-            gap[(a, b)] = float(trees[a].query(points[alive[b]], distance_upper_bound=reach)[0].min())
+    trees = [cKDTree(points[p]) for p in parts]
+    gap: dict[tuple[int, int], float] = {}  # a merged run's gap is the smaller of its parts'
+    for a in range(len(parts)):
+        for b in range(a + 1, len(parts)):
+            gap[(a, b)] = float(trees[a].query(points[parts[b]], distance_upper_bound=reach)[0].min())
     cache: dict[tuple[int, int], tuple] = {}
 
     def cand(a, b):
@@ -612,11 +635,9 @@ def _merge_runs(points: np.ndarray, parts: list[np.ndarray], cfg: PerceptionConf
         if key not in cache:
             cache[key] = None
             if gap.get(key, math.inf) <= reach:
-                u = points[np.concatenate((alive[a], alive[b]))]
-                e = rect_error(u)
-                if e <= 1.5 * cfg.split_tol and _free_inside(u, free, cfg.free_cell) == 0:
-                    (_, _), (w, h), _ = cv2.minAreaRect(u.astype(np.float32))
-                    cache[key] = (round(e / max(cfg.split_tol, 1e-9) * 4) / 4, w * h)
+                e, n_free, r = _rect_test(points[np.concatenate((alive[a], alive[b]))], free, cfg.free_cell)
+                if e <= 1.5 * cfg.split_tol and n_free == 0:
+                    cache[key] = (round(e / max(cfg.split_tol, 1e-9) * 4) / 4, r.w * r.h)
         return cache[key]
 
     nxt = len(parts)
@@ -632,13 +653,11 @@ def _merge_runs(points: np.ndarray, parts: list[np.ndarray], cfg: PerceptionConf
             break
         _, a, b = best
         merged = np.concatenate((alive.pop(a), alive.pop(b)))
-        ta, tb = trees.pop(a), trees.pop(b)
         for o in alive:
             ga = gap.get((min(a, o), max(a, o)), math.inf)
             gb = gap.get((min(b, o), max(b, o)), math.inf)
             gap[(o, nxt)] = min(ga, gb)
         alive[nxt] = merged
-        trees[nxt] = cKDTree(points[merged])
         nxt += 1
     return list(alive.values())
 
