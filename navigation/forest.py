@@ -67,8 +67,6 @@ Symbols
 from __future__ import annotations
 
 import math
-import threading
-from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -76,6 +74,7 @@ import networkx as nx
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ._memo import Memo
 from .errors import ForestError
 from .geometry import COS, CX, CY, HH, HW, S, SIN, Squircle, boundary_jet_rows, clear_geometry_cache, pack
 
@@ -98,51 +97,14 @@ _MEMO_SIZE = 65536  # pairwise results kept by the memo (a few hundred bytes eac
 _BODY_SIZE = 1024  # boundary-sample sets kept by the memo
 
 
-class _Memo:
-    """Bounded, thread-safe LRU memo of results that depend on one or two squircles only.
-
-    Every expensive step of :func:`build_forest` is a function of one obstacle (its boundary
-    samples), of a pair (overlap, containment, distance) or of a child/parent pair (common
-    centre), computed row by row: a row's result does not depend on the other rows of its
-    batch. Keying these results by the squircles themselves (frozen, hashable) makes a rebuild
-    after a map change cost only the rows that involve changed obstacles (paper 001 section
-    4.2.2: re-use the stored terms of the unchanged obstacles) and gives exactly the result of
-    a cold build.
-    """
-
-    def __init__(self, maxsize: int):
-        self.maxsize = maxsize
-        self._data: OrderedDict = OrderedDict()
-        self._lock = threading.Lock()
-        self.hits = 0
-        self.misses = 0
-
-    def get(self, key):
-        with self._lock:
-            try:
-                value = self._data[key]
-            except KeyError:
-                self.misses += 1
-                return None
-            self._data.move_to_end(key)
-            self.hits += 1
-            return value
-
-    def put(self, key, value) -> None:
-        with self._lock:
-            self._data[key] = value
-            self._data.move_to_end(key)
-            while len(self._data) > self.maxsize:
-                self._data.popitem(last=False)
-
-    def clear(self) -> None:
-        with self._lock:
-            self._data.clear()
-            self.hits = self.misses = 0
-
-
-_PAIRS = _Memo(_MEMO_SIZE)
-_BODIES = _Memo(_BODY_SIZE)
+# Every expensive step of build_forest is a function of one obstacle (its boundary samples), of
+# a pair (overlap, containment, distance) or of a child/parent pair (common centre), computed row
+# by row: a row's result does not depend on the other rows of its batch. Keying these results by
+# the squircles themselves (frozen, hashable) makes a rebuild after a map change cost only the
+# rows that involve changed obstacles (paper 001 section 4.2.2: re-use the stored terms of the
+# unchanged obstacles) and gives the result of a cold build.
+_PAIRS = Memo(_MEMO_SIZE)
+_BODIES = Memo(_BODY_SIZE)
 
 
 def clear_cache() -> None:
@@ -451,9 +413,9 @@ def _nearest_samples(bodies: Sequence[_Body], ids, dense: bool):
     return _Slabs(bodies, ids, dense) if len(ids) > 4 else _PerBody(bodies, dense)
 
 
-def _signed_distance(bodies: Sequence[_Body], bid: np.ndarray, q: np.ndarray, tol: float | None = None) -> np.ndarray:
+def _signed_distance(bodies: Sequence[_Body], bid: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Exact signed distances of points ``q (K, 2)`` to bodies ``bid (K,)`` (negative inside):
-    :meth:`Squircle.distance` (``tol`` is accepted for compatibility and ignored)."""
+    :meth:`Squircle.distance`."""
     out = np.empty(len(q))
     for b in np.unique(bid):
         sel = np.nonzero(bid == b)[0]
@@ -728,7 +690,7 @@ def _thin_centers(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, sgn: np
 
     def depth_j(rows, q):  # depth of points q (k, n, 2) in O_J (outside the workspace)
         k, n = q.shape[:2]
-        sd = _signed_distance(bodies, np.repeat(J[rows], n), q.reshape(-1, 2), tol=1e-10).reshape(k, n)
+        sd = _signed_distance(bodies, np.repeat(J[rows], n), q.reshape(-1, 2)).reshape(k, n)
         return sgn[rows, None] * sd
 
     psi0, w0 = np.empty(K), np.empty(K)
@@ -751,7 +713,7 @@ def _thin_centers(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, sgn: np
 
     def objective(r, q):
         k, n = q.shape[:2]
-        di = -_signed_distance(bodies, np.repeat(I[r], n), q.reshape(-1, 2), tol=1e-10).reshape(k, n)
+        di = -_signed_distance(bodies, np.repeat(I[r], n), q.reshape(-1, 2)).reshape(k, n)
         return -np.minimum(di, depth_j(r, q))
 
     fs = objective(rows, start[:, None, :])[:, 0]

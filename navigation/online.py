@@ -28,12 +28,12 @@ propagates (the caller decides: the perception map repairs, the executive report
 
 from __future__ import annotations
 
-from collections import OrderedDict
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
+from ._memo import Memo
 from .errors import WorldError
 from .forest import NO_PARENT, Forest, build_forest
 from .geometry import Squircle
@@ -116,7 +116,7 @@ class OnlineWorld:
         self._version = 0
         self._forest = self._build(start)
         self._obstacles = start
-        self._functions: OrderedDict = OrderedDict()
+        self._functions = Memo(_FUNCTIONS)
 
     # ------------------------------------------------------------------ state
     @property
@@ -202,11 +202,7 @@ class OnlineWorld:
         nf = self._functions.get(key)
         if nf is None:
             nf = NavigationFunction(self._forest, g, **overrides)
-            self._functions[key] = nf
-            while len(self._functions) > _FUNCTIONS:
-                self._functions.popitem(last=False)
-        else:
-            self._functions.move_to_end(key)
+            self._functions.put(key, nf)
         return nf
 
     def oriented_field(self, pose, **overrides) -> OrientedField:

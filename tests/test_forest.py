@@ -548,9 +548,9 @@ class TestMemo:
             assert build_forest(WS, [a, b]).dropped == ((1, "contained in obstacle 0"),)
 
     def test_lru_bound(self):
-        from navigation.forest import _Memo
+        from navigation._memo import Memo
 
-        m = _Memo(3)
+        m = Memo(3)
         for k in range(5):
             m.put(k, k * 10)
         assert m.get(0) is None and m.get(1) is None
