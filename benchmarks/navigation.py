@@ -16,8 +16,10 @@ intervals, after one warm-up call):
   (the issue's construction target counts the forest build);
 * ``update``: the same total when one obstacle has just been added to a world whose other
   obstacles the forest memo already holds (``build_forest`` re-uses the memoised per-obstacle
-  and pairwise results, paper 001 section 4.2.2): median over up to 7 choices of the added
-  obstacle. This is what a map change costs in the running service.
+  and pairwise results, paper 001 section 4.2.2), measured by
+  :func:`benchmarks.online.bench_world` (``OnlineWorld.apply`` + ``navigation_function``):
+  median over up to 7 choices of the added obstacle. This is what a map change costs in the
+  running service.
 
 ``forest_build`` and ``construction`` are *cold*: the forest memo is cleared
 (:func:`navigation.forest.clear_cache`) before every timed call.
@@ -46,9 +48,10 @@ from pathlib import Path
 import numpy as np
 
 import navigation
-from navigation import ForestError, NavigationFunction, build_forest
+from navigation import NavigationFunction, build_forest
 from navigation.forest import clear_cache
 from benchmarks._common import log, machine_info, verdict, write_results
+from benchmarks.online import bench_world as online_update
 from tests.worldgen import random_forest_world, random_free_points
 
 __all__ = ["main", "run", "render_markdown", "TARGETS", "SIZES", "SHARED"]
@@ -69,9 +72,9 @@ TARGET_OBSTACLES = 20
 #: rows whose obstacle count is at most this are held to the targets (office has 22)
 TARGET_APPLIES_UP_TO = 25
 
-FULL = {"forest_repeats": 7, "construction_repeats": 50, "update_repeats": 3, "points": 200, "batch_repeats": 7,
+FULL = {"forest_repeats": 7, "construction_repeats": 50, "update_picks": 7, "points": 200, "batch_repeats": 7,
         "grid_repeats": 7}
-QUICK = {"forest_repeats": 1, "construction_repeats": 3, "update_repeats": 1, "points": 10, "batch_repeats": 1,
+QUICK = {"forest_repeats": 1, "construction_repeats": 3, "update_picks": 2, "points": 10, "batch_repeats": 1,
          "grid_repeats": 1}
 
 
@@ -95,28 +98,6 @@ def _median_cold(fn: Callable[[], object], repeats: int) -> float:
         t0 = time.perf_counter()
         fn()
         samples.append(time.perf_counter() - t0)
-    return statistics.median(samples)
-
-
-def _median_update(world, goal, repeats: int) -> float:
-    """Median time of ``NavigationFunction(build_forest(...), goal)`` right after one obstacle was
-    added to an otherwise memoised world (see the module docstring)."""
-    obs = list(world.obstacles)
-    picks = sorted(set(np.linspace(0, len(obs) - 1, min(7, len(obs))).round().astype(int).tolist()))
-    samples = []
-    for k in picks:
-        rest = obs[:k] + obs[k + 1:]
-        for _ in range(max(1, repeats)):
-            clear_cache()
-            try:
-                build_forest(world.workspace, rest)  # untimed: the memo now holds all but obstacle k
-            except ForestError:
-                break  # removing k leaves a world the forest refuses (e.g. a split tree): skip it
-            t0 = time.perf_counter()
-            NavigationFunction(build_forest(world.workspace, obs), goal)
-            samples.append(time.perf_counter() - t0)
-    if not samples:
-        raise RuntimeError("no obstacle of this world can be removed without the forest refusing the rest")
     return statistics.median(samples)
 
 
@@ -145,7 +126,7 @@ def bench_world(world, settings: dict, seed: int = 0) -> dict:
     nf_construction = _median_time(lambda: NavigationFunction(forest, goal), settings["construction_repeats"])
     construction = _median_cold(lambda: NavigationFunction(build_forest(world.workspace, world.obstacles), goal),
                                 settings["forest_repeats"])
-    update = _median_update(world, goal, settings["update_repeats"])
+    update = online_update(world, settings["update_picks"])["update"]
     nf = NavigationFunction(forest, goal)
     pts = random_free_points(world, settings["points"], rng)
     nf.evaluate(pts[0], 2)  # warm-up
