@@ -69,7 +69,7 @@ import logging
 import math
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -79,7 +79,7 @@ from navigation.forest import build_forest
 from navigation.geometry import Squircle, beta_rows, pack
 from navigation.oriented import OrientedField
 from navigation.potential import NavigationFunction
-from navigation.world import World
+from navigation.world import World, configuration_space
 from perception.errors import ScanError
 from perception.fit import inflate
 from perception.map import ObstacleMap
@@ -278,7 +278,7 @@ class Executive:
         self.config = cfg = config or ExecutiveConfig()
         self.radius = r = float(world.robot.radius)
         self.control = ControllerConfig.from_robot(world.robot)
-        self.cspace_workspace = world.workspace.grow(-r) if r > 0 else world.workspace
+        self.cspace_workspace, _ = configuration_space(world.workspace, (), r)
         self.messages: list[str] = []
         self.message = ""
         self.time = 0.0
