@@ -26,7 +26,7 @@ import numpy as np
 
 from navigation.geometry import Squircle
 
-from .map import MapUpdate, ObstacleMap
+from .map import ObstacleMap
 
 __all__ = ["tour", "drive", "score", "DriveResult", "Score", "components"]
 

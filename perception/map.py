@@ -53,7 +53,7 @@ from navigation.geometry import Squircle
 
 from .config import PerceptionConfig
 from .errors import PoseJumpError, ScanError, StampError
-from .fit import Fit, fit_cluster, fit_squircle, gauge, inflate, radial_error, rect_error
+from .fit import fit_cluster, fit_squircle, gauge, inflate, radial_error, rect_error
 from .ingest import Scan, parse_points, parse_pose, parse_scan
 
 __all__ = ["Estimate", "MapUpdate", "ObstacleMap"]

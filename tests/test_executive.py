@@ -15,7 +15,6 @@ import math
 import subprocess
 import sys
 
-import numpy as np
 import pytest
 
 from navigation.world import World

@@ -10,7 +10,6 @@ import math
 import numpy as np
 import pytest
 
-import navigation
 from navigation.errors import HarmonicTampError, PerceptionError
 from perception import ObstacleMap, PerceptionConfig, PoseJumpError, ScanError, StampError, parse_points, parse_scan
 from service.sim import Simulator

@@ -10,7 +10,6 @@ import json
 import time
 
 import pytest
-import zenoh
 from zenoh.ext import HistoryConfig, declare_advanced_subscriber
 
 import navigation
