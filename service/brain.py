@@ -174,3 +174,12 @@ class ExecutiveBrain:
     def leg(self):
         """Waypoints of the current leg ``(K, 3)`` and the index of the current one (for Rerun)."""
         return list(self._ex.leg), self._ex.wp
+
+    def regions(self) -> dict:
+        """The executive's current regions, name -> ``navigation.world.Region`` (for Rerun)."""
+        return self._ex.world.regions
+
+    def field(self):
+        """The oriented field tracked now (``navigation.OrientedField``, its ``.nf`` the
+        navigation function), or ``None``; never builds one (for Rerun)."""
+        return self._ex.current_field

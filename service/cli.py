@@ -225,6 +225,14 @@ def _cmd_demo(a) -> int:
            "tick_p50_ms": float(np.percentile(ticks, 50)) if len(ticks) else None,
            "tick_p95_ms": float(np.percentile(ticks, 95)) if len(ticks) else None,
            "warnings": node.stats.warnings, "record": a.record}
+    if tel.enabled or tel.times:
+        viz = np.asarray(tel.times) * 1e3
+        fld = np.asarray(tel.field_times) * 1e3
+        out["telemetry"] = {"tick_p50_ms": float(np.percentile(viz, 50)) if len(viz) else None,
+                            "tick_p95_ms": float(np.percentile(viz, 95)) if len(viz) else None,
+                            "field_refreshes": int(len(fld)),
+                            "field_mean_ms": float(fld.mean()) if len(fld) else None,
+                            "field_max_ms": float(fld.max()) if len(fld) else None}
     if a.json:
         print(json.dumps(out))
     else:
@@ -240,7 +248,12 @@ def _cmd_demo(a) -> int:
               f"max re-plan {out['max_replan_time'] * 1e3:.1f} ms\n"
               f"  control loop   {out['ticks']} ticks, p50 {f(out['tick_p50_ms'], '.1f')} ms, "
               f"p95 {f(out['tick_p95_ms'], '.1f')} ms, {out['overruns']} overruns, {out['warnings']} input warnings"
-              + (f"\n  recording      {out['record']}" if out["record"] else ""))
+              + (f"\n  recording      {out['record']}" if out["record"] else "")
+              + (f"\n  rerun logging  p50 {f(out['telemetry']['tick_p50_ms'], '.2f')} ms, "
+                 f"p95 {f(out['telemetry']['tick_p95_ms'], '.2f')} ms per tick; "
+                 f"{out['telemetry']['field_refreshes']} navigation-function refreshes, "
+                 f"mean {f(out['telemetry']['field_mean_ms'], '.1f')} ms, "
+                 f"max {f(out['telemetry']['field_max_ms'], '.1f')} ms" if "telemetry" in out else ""))
     return 0
 
 

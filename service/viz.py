@@ -17,6 +17,10 @@ Entity paths (2-D world frame, metres)::
     world/path                 LineStrips2D   current leg of the harmonic tree (on change)
     world/path/vertices        Points2D       its waypoints (tree vertices)
     world/goal                 Arrows2D       current waypoint pose (goal of the oriented field)
+    world/nf                   Points2D       heat map of the navigation function the controller
+                                              tracks (free points of a coarse grid; low rate)
+    world/field                Arrows2D       oriented-field directions on free points around the
+                                              robot and the current waypoint (low rate)
     status/state               TextLog        state changes and messages
     status/plan                TextDocument   task, plan prefix/suffix, target
     plots/v, plots/omega       Scalars        command
@@ -24,16 +28,25 @@ Entity paths (2-D world frame, metres)::
     plots/planning_ms          Scalars        brain compute of ticks that re-planned
 
 Timelines: ``tick`` (sequence) and ``sim_time`` (the robot clock, from pose stamps). A
-blueprint lays out the map, the time series and the text views.
+blueprint lays out the map, the navigation-function view (heat map, arrows, outlines, robot),
+the time series and the text views.
 
-Not streamed (yet): the navigation-function heat map and the oriented-field arrow grid: the
-executive does not expose a cheap evaluation of them on a grid.
+The heat map and the arrows come from the brain's ``field()`` (the oriented field of the
+waypoint the executive tracks, never built for the purpose; ``None`` when there is none). They
+are refreshed at most every ``field_period`` seconds of robot time (default 2 s): the arrows at
+each refresh (they follow the robot), the heat map only when the field changed since the last
+one (a new waypoint or a new forest after a map change). The evaluation is vectorised
+(``nf.evaluate(G, 0)`` on about ``heat_points`` grid points, ``field.field`` on at most
+``arrow_grid**2``); it runs on the control thread after the command is published, at about
+3-7 ms per refresh (``Telemetry.times`` / ``Telemetry.field_times`` keep the cost).
 """
 
 from __future__ import annotations
 
 import logging
 import math
+import time
+from collections import deque
 
 import numpy as np
 
@@ -41,6 +54,26 @@ __all__ = ["Telemetry"]
 
 log = logging.getLogger("service.viz")
 _OUTLINE = 96  # boundary samples per squircle
+# viridis at 0, 0.25, 0.5, 0.75, 1 (low potential dark blue, high yellow)
+_VIRIDIS = np.array([[68, 1, 84], [59, 82, 139], [33, 145, 140], [94, 201, 98], [253, 231, 37]], float)
+
+
+def _colormap(t: np.ndarray, alpha: int = 200) -> np.ndarray:
+    """RGBA uint8 ``(N, 4)`` of values ``t`` in ``[0, 1]`` (viridis, linear between 5 stops)."""
+    t = np.clip(np.nan_to_num(t, nan=1.0), 0.0, 1.0) * (len(_VIRIDIS) - 1)
+    k = np.minimum(t.astype(int), len(_VIRIDIS) - 2)
+    f = (t - k)[:, None]
+    rgb = _VIRIDIS[k] * (1 - f) + _VIRIDIS[k + 1] * f
+    return np.hstack([rgb, np.full((len(t), 1), alpha)]).astype(np.uint8)
+
+
+def _grid(lo, hi, n_points: int) -> tuple[np.ndarray, float]:
+    """A square grid of about ``n_points`` points over the box ``lo..hi``; ``(points (N, 2), step)``."""
+    size = np.maximum(np.asarray(hi, float) - np.asarray(lo, float), 1e-6)
+    step = math.sqrt(float(size[0] * size[1]) / max(n_points, 1))
+    xs = np.arange(lo[0] + step / 2, hi[0], step)
+    ys = np.arange(lo[1] + step / 2, hi[1], step)
+    return np.stack(np.meshgrid(xs, ys), -1).reshape(-1, 2), step
 
 
 def _outlines(squircles) -> list[np.ndarray]:
@@ -56,10 +89,25 @@ def _outlines(squircles) -> list[np.ndarray]:
 
 
 class Telemetry:
-    """Rerun output of the service; inert when it has no sink. Use :meth:`from_options`."""
+    """Rerun output of the service; inert when it has no sink. Use :meth:`from_options`.
 
-    def __init__(self, rec=None):
+    ``field_period`` (robot seconds between heat-map / arrow refreshes), ``heat_points`` (grid
+    points of the heat map over the workspace), ``arrow_grid`` (arrows per side of the box
+    around the robot and its waypoint) set the cost of the navigation-function views.
+    ``times`` and ``field_times`` hold the wall seconds of the last calls of :meth:`log_tick`
+    and of its navigation-function refreshes."""
+
+    def __init__(self, rec=None, *, field_period: float = 2.0, heat_points: int = 2000, arrow_grid: int = 12):
         self._rec = rec
+        self.field_period = float(field_period)
+        self.heat_points = int(heat_points)
+        self.arrow_grid = int(arrow_grid)
+        self.times: deque = deque(maxlen=100000)
+        self.field_times: deque = deque(maxlen=10000)
+        self._field = None          # the field of the last heat map
+        self._field_t = -math.inf   # robot time of the last refresh
+        self._heat_grid = None      # (points, step) over the workspace
+        self._regions = None        # regions last logged
         self._tick = 0
         self._trail: list[tuple[float, float]] = []
         self._last_state = None
@@ -101,7 +149,14 @@ class Telemetry:
 
         bp = rrb.Blueprint(
             rrb.Horizontal(
-                rrb.Spatial2DView(origin="world", name="map"),
+                rrb.Vertical(
+                    rrb.Spatial2DView(origin="world", name="map", contents=["+ $origin/**", "- /world/nf"]),
+                    rrb.Spatial2DView(origin="world", name="navigation function",
+                                      contents=["+ /world/nf", "+ /world/field", "+ /world/workspace",
+                                                "+ /world/obstacles/estimated", "+ /world/regions",
+                                                "+ /world/robot", "+ /world/goal", "+ /world/path"]),
+                    row_shares=[3, 2],
+                ),
                 rrb.Vertical(
                     rrb.TimeSeriesView(origin="plots", name="command and timing"),
                     rrb.TextDocumentView(origin="status/plan", name="plan"),
@@ -132,20 +187,39 @@ class Telemetry:
         rec = self._rec
         rec.log("world/workspace", rr.LineStrips2D(_outlines([world.workspace]), colors=[[200, 200, 200]]),
                 static=True)
-        names = list(world.regions)
-        if names:
-            rec.log("world/regions", rr.Points2D([world.regions[n].center for n in names],
-                                                  radii=[world.regions[n].radius for n in names],
-                                                  labels=names, colors=[[80, 160, 255, 90]]), static=True)
+        self._log_regions(world.regions)
         if true_obstacles and world.obstacles:
             rec.log("world/obstacles/true", rr.LineStrips2D(_outlines(world.obstacles), colors=[[120, 120, 120]]),
                     static=True)
+
+    def _log_regions(self, regions) -> None:
+        """Region discs (static: the latest set replaces the previous one)."""
+        import rerun as rr
+
+        key = tuple((n, tuple(r.center), r.radius) for n, r in regions.items())
+        if key == self._regions:
+            return
+        self._regions = key
+        names = list(regions)
+        if names:
+            self._rec.log("world/regions", rr.Points2D([regions[n].center for n in names],
+                                                        radii=[regions[n].radius for n in names],
+                                                        labels=names, colors=[[80, 160, 255, 90]]), static=True)
+        else:
+            self._rec.log("world/regions", rr.Clear(recursive=False), static=True)
 
     # ------------------------------------------------------------------ per tick
     def log_tick(self, node, *, scan=None, points=None, out=None, status=None, compute: float = 0.0) -> None:
         """Everything that changed in one control period of ``node`` (a ServiceNode)."""
         if self._rec is None:
             return
+        t0 = time.perf_counter()
+        try:
+            self._log_tick(node, scan, points, out, status, compute)
+        finally:
+            self.times.append(time.perf_counter() - t0)
+
+    def _log_tick(self, node, scan, points, out, status, compute) -> None:
         import rerun as rr
 
         rec = self._rec
@@ -212,3 +286,57 @@ class Telemetry:
                         f"**prefix** {' -> '.join(p.get('prefix', []))}\n\n"
                         f"**suffix** {' -> '.join(p.get('suffix', []))}")
                 rec.log("status/plan", rr.TextDocument(text, media_type="text/markdown"))
+        regions_fn = getattr(node.brain, "regions", None)
+        if regions_fn is not None:
+            self._log_regions(regions_fn())
+        field_fn = getattr(node.brain, "field", None)
+        if field_fn is not None and pose is not None and float(pose.stamp) - self._field_t >= self.field_period:
+            try:
+                self._log_field(node, field_fn(), pose)
+            except Exception as err:  # visualisation must never take the service down
+                log.debug("navigation function not logged: %s", err)
+
+    def _log_field(self, node, fld, pose) -> None:
+        """Heat map of ``fld.nf`` (when ``fld`` is new) and arrows of ``fld`` around the robot
+        and the current waypoint (see the module docstring)."""
+        if fld is None:
+            return
+        import rerun as rr
+
+        t0 = time.perf_counter()
+        rec = self._rec
+        self._field_t = float(pose.stamp)
+        nf = fld.nf
+        if fld is not self._field:
+            self._field = fld
+            if self._heat_grid is None:
+                ws = node.brain.world.workspace
+                pts = ws.boundary_points(_OUTLINE)
+                self._heat_grid = _grid(pts.min(axis=0), pts.max(axis=0), self.heat_points)
+            grid, step = self._heat_grid
+            ev = nf.evaluate(grid, 0)
+            free = ev.free
+            mu = float(nf.params.mu) or 1.0
+            rec.log("world/nf", rr.Points2D(grid[free], radii=[0.5 * step], colors=_colormap(ev.value[free] / mu),
+                                            draw_order=-10.0))
+        robot = np.array([pose.x, pose.y])
+        goal = np.asarray(fld.goal, float)
+        lo = np.minimum(robot, goal) - 0.5
+        hi = np.maximum(robot, goal) + 0.5
+        span = float(max(hi - lo))
+        n = max(self.arrow_grid, 2)
+        step = span / n
+        xs = np.arange(lo[0] + step / 2, hi[0], step)
+        ys = np.arange(lo[1] + step / 2, hi[1], step)
+        pts = np.stack(np.meshgrid(xs, ys), -1).reshape(-1, 2)
+        pts = pts[nf.is_free(pts)]
+        if len(pts):
+            vec = fld.field(pts)
+            norm = np.linalg.norm(vec, axis=1, keepdims=True)
+            ok = norm[:, 0] > 1e-12
+            vec = np.where(ok[:, None], vec / np.where(ok[:, None], norm, 1.0), 0.0) * (0.7 * step)
+            rec.log("world/field", rr.Arrows2D(origins=pts[ok], vectors=vec[ok], colors=[[230, 230, 230]],
+                                               radii=[0.008]))
+        else:
+            rec.log("world/field", rr.Clear(recursive=False))
+        self.field_times.append(time.perf_counter() - t0)

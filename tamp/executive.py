@@ -351,6 +351,16 @@ class Executive:
         return plan
 
     @property
+    def current_field(self) -> OrientedField | None:
+        """The oriented field the controller tracks now (current waypoint of the leg, current
+        forest), or ``None`` when there is none yet. Never builds one: only the cache of the
+        fields the last command used is read (for visualisation; ``.nf`` is its navigation
+        function)."""
+        if self.state is not ExecutiveState.EXECUTING or not self.leg or self.wp >= len(self.leg):
+            return None
+        return self._fields.get((self.leg[self.wp], id(self.forest)))
+
+    @property
     def obstacles(self) -> list[Squircle]:
         """Current obstacle model: known obstacles and perception estimates."""
         return list(self.known) + (self.omap.obstacles() if self.omap is not None else [])

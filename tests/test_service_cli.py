@@ -105,5 +105,6 @@ def test_demo_mission_of_simple_completes_over_the_bus_with_a_recording(tmp_path
     paths = {str(c.entity_path) for c in RrdReader(str(rrd)).stream().collect().stream()}
     for p in ("/world/workspace", "/world/regions", "/world/obstacles/true", "/world/obstacles/estimated",
               "/world/lidar", "/world/robot", "/world/robot/trail", "/world/path", "/world/path/vertices",
-              "/world/goal", "/plots/v", "/plots/omega", "/plots/tick_ms", "/status/state", "/status/plan"):
+              "/world/goal", "/world/nf", "/world/field", "/plots/v", "/plots/omega", "/plots/tick_ms",
+              "/status/state", "/status/plan"):
         assert p in paths, (p, sorted(paths))

@@ -1,0 +1,88 @@
+"""Rerun telemetry (``service.viz``): inert without a sink; with one, the navigation-function
+heat map (free points only) and the oriented-field arrows are written at a low rate and read
+back from the recording."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+import navigation
+from service.brain import ExecutiveBrain
+from service.messages import PoseMsg
+from service.viz import Telemetry
+
+from .conftest import world_file
+
+
+@pytest.fixture
+def simple_brain():
+    world = navigation.load_world(world_file("simple"))
+    brain = ExecutiveBrain(world, "F a & F b", known=True)
+    return world, brain
+
+
+def _node(brain, stamp: float, x: float, y: float, theta: float):
+    pose = PoseMsg(stamp, x, y, theta)
+    return SimpleNamespace(brain=brain, pose=pose, command=(0.1, 0.0), _pose_at=lambda s: pose)
+
+
+def _drive(brain, tel, world, seconds: float, dt: float = 0.1):
+    """Tick the brain from the start pose (no motion needed) and log every tick."""
+    x, y, th = world.robot.start
+    for k in range(int(round(seconds / dt))):
+        t = k * dt
+        node = _node(brain, t, x, y, th)
+        out = brain.tick(node.pose, now=t)
+        tel.log_tick(node, out=out, status=out.status, compute=0.001)
+
+
+def test_without_a_sink_nothing_is_built_or_evaluated(simple_brain, monkeypatch):
+    import rerun as rr
+
+    world, brain = simple_brain
+
+    def boom(*a, **k):
+        raise AssertionError("an archetype was built without a sink")
+
+    for name in ("Points2D", "Arrows2D", "LineStrips2D", "Scalars", "TextLog", "TextDocument", "Clear"):
+        monkeypatch.setattr(rr, name, boom)
+    monkeypatch.setattr(brain, "field", boom)  # the heat map's source is never asked for
+    monkeypatch.setattr(brain, "regions", boom)
+    tel = Telemetry.from_options(record=None, viewer=None)
+    assert not tel.enabled
+    tel.log_world(world, true_obstacles=True)
+    _drive(brain, tel, world, 3.0)
+    assert not tel.times and not tel.field_times
+
+
+def test_heat_map_and_arrows_are_recorded_at_a_low_rate_on_free_points(simple_brain, tmp_path):
+    from rerun.chunk import RrdReader
+
+    world, brain = simple_brain
+    rrd = tmp_path / "nf.rrd"
+    tel = Telemetry.from_options(record=rrd, recording_id="test-nf")
+    tel.log_world(world)
+    _drive(brain, tel, world, 5.0)
+    fld = brain.field()
+    assert fld is not None
+    refreshes = len(tel.field_times)
+    assert 2 <= refreshes <= 4, refreshes  # every 2 s of robot time over 5 s, not every tick
+    tel.close()
+    rows: dict[str, list] = {}
+    for chunk in RrdReader(str(rrd)).stream().collect().stream():
+        rows.setdefault(str(chunk.entity_path), []).append(chunk.to_record_batch())
+    assert "/world/nf" in rows and "/world/field" in rows, sorted(rows)
+    # every heat-map point is in the free space of the navigation function that was tracked
+    pts = []
+    for batch in rows["/world/nf"]:
+        for name in batch.schema.names:
+            if name.endswith("Points2D:positions"):
+                for cell in batch.column(name).to_pylist():
+                    if cell:
+                        pts.extend(cell)
+    pts = np.asarray(pts, float)
+    assert len(pts) > 100
+    assert fld.nf.is_free(pts).all()
