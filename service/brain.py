@@ -109,8 +109,11 @@ class ExecutiveBrain:
     * A scan is integrated with the pose of its stamp (``scan_pose``); when that is older than
       the latest pose, the tick that integrates it also computes the command from it (at most
       one pose period late). The executive pairs a scan with one pose per tick.
-    * ``regions`` in a task request must match the world's regions: the executive has no API to
-      add regions at run time, so new or moved ones are refused with ``invalid_request``.
+    * ``regions`` in a task request are added or moved with the mission change
+      (:meth:`tamp.executive.Executive.request`, rules of ``Executive.set_regions``): a region
+      that breaks a rule is refused with ``invalid_request`` whose message starts with
+      ``regions.<name>:`` and ends with ``[rule: workspace|free_space|disjoint|alphabet|format]``;
+      nothing changes then. Regions given with their current centre and radius are no change.
     * A mission counts as completed when the executive reports ``done`` (co-safe missions) or,
       for a recurrent mission, after two arrivals at the accepting state of its lasso (the rule
       of :func:`tamp.run.run_mission`).
@@ -140,14 +143,8 @@ class ExecutiveBrain:
         return BrainTick(r.v, r.omega, dict(r.status), r.compute, r.map_changed, r.replanned)
 
     def request_task(self, request: TaskRequest) -> dict:
-        for name, reg in request.regions.items():
-            known = self.world.regions.get(name)
-            if known is None or tuple(known.center) != tuple(reg.center) or known.radius != reg.radius:
-                raise TaskRejected(TaskErrorCode.INVALID_REQUEST,
-                                   f"task.regions.{name}: adding or moving regions at run time is not supported; "
-                                   f"known regions: {', '.join(sorted(self.world.regions))}")
         try:
-            plan = self._ex.request(request.formula, request.mode)
+            plan = self._ex.request(request.formula, request.mode, regions=request.regions or None)
         except TampError as err:
             raise TaskRejected(task_error_code(err), str(err)) from None
         except HarmonicTampError as err:  # any other refusal of the product
@@ -177,7 +174,7 @@ class ExecutiveBrain:
 
     def regions(self) -> dict:
         """The executive's current regions, name -> ``navigation.world.Region`` (for Rerun)."""
-        return self._ex.world.regions
+        return self._ex.regions
 
     def field(self):
         """The oriented field tracked now (``navigation.OrientedField``, its ``.nf`` the

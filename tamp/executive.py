@@ -18,7 +18,11 @@ Work is triggered by what changed, never done on every tick:
   re-plan runs only when one of them is hit (or when the executive is ``blocked``);
 * reaching a region advances the mission automaton and re-plans (the next leg);
 * a mission event (``replace``, ``add``, ``urgent``; world-file ``events`` at their times or
-  :meth:`Executive.request`) re-plans.
+  :meth:`Executive.request`) re-plans;
+* regions added or moved at run time (:meth:`Executive.set_regions`, or ``regions=`` of
+  :meth:`Executive.request`; validated against the known map, all or nothing) rebuild the
+  planner's navigation map over the new region set, keeping the mission's progress and the
+  trees between unmoved regions, and re-plan.
 
 Planning is *lazy* (section 4.2.4 with the lazy evaluation of roadmap planners): the navigation
 map starts fully connected with its straight-line costs, which are lower bounds of every tree
@@ -69,29 +73,30 @@ import logging
 import math
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from navigation.control import ControllerConfig, track_waypoints
-from navigation.errors import ForestError, NavigationError, TampError
+from navigation.errors import ForestError, NavigationError, TampError, WorldError
 from navigation.forest import build_forest
 from navigation.geometry import Squircle, beta_rows, pack
 from navigation.oriented import OrientedField
 from navigation.potential import NavigationFunction
-from navigation.world import World, configuration_space
+from navigation.world import Region, World, configuration_space
 from perception.errors import ScanError
 from perception.fit import inflate
 from perception.map import ObstacleMap
 
-from .errors import NoPlanError
+from .errors import InvalidRequestError, NoPlanError
 from .harmonic_tree import NoTreePathError, RotationWeights, TreeFailure, plan_tree
 from .ltl import ops
 from .navmap import START, Node
-from .planner import MissionMode, MissionPlanner, Plan
+from .planner import MissionMode, MissionPlanner, Plan, _Mission, _Urgent
+from .product import Product
 from .roadmap import Roadmap, RoadmapConfig, segments_clear
 
-__all__ = ["Executive", "ExecutiveConfig", "ExecutiveState", "TickResult"]
+__all__ = ["Executive", "ExecutiveConfig", "ExecutiveState", "TickResult", "RegionError", "RegionRule"]
 
 log = logging.getLogger("tamp.executive")
 
@@ -116,6 +121,32 @@ class ExecutiveState(str, enum.Enum):
         except ValueError:
             valid = ", ".join(repr(s.value) for s in cls)
             raise ValueError(f"{value!r} is not a valid state, must be one of {valid}") from None
+
+
+class RegionRule(str, enum.Enum):
+    """The rule a run-time region breaks (:class:`RegionError`)."""
+
+    FORMAT = "format"          #: not a valid region (name, centre, radius)
+    WORKSPACE = "workspace"    #: its disc grown by the robot radius must lie inside the workspace
+    FREE_SPACE = "free_space"  #: ... and clear of every known obstacle and obstacle estimate
+    DISJOINT = "disjoint"      #: region discs must be pairwise disjoint
+    ALPHABET = "alphabet"      #: the running mission cannot read a visit to it (see Executive.set_regions)
+
+
+class RegionError(InvalidRequestError):
+    """A region that cannot be added or moved at run time (:meth:`Executive.set_regions`).
+
+    Attributes
+    ----------
+    region : str
+        The offending region's name (the message starts with ``regions.<name>:``).
+    rule : RegionRule
+    """
+
+    def __init__(self, region: str, rule: RegionRule, message: str):
+        self.region = region
+        self.rule = RegionRule(rule)
+        super().__init__(f"regions.{region}: {message} [rule: {self.rule.value}]")
 
 
 @dataclass(frozen=True, slots=True)
@@ -266,7 +297,8 @@ class Executive:
     ---
     ``result = ex.tick(pose, scan=None, points=None, now=None)`` once per control period;
     ``result.v, result.omega`` is the command, ``result.status`` the FORMATS.md ``status``
-    payload. ``ex.request(formula, mode)`` changes the mission at run time.
+    payload. ``ex.request(formula, mode, regions=None)`` changes the mission at run time,
+    ``ex.set_regions(regions)`` adds or moves regions.
     """
 
     def __init__(self, world: World, task: str | None = None, *, known: bool = False,
@@ -317,6 +349,7 @@ class Executive:
         self._need_plan = True
         start = np.array(world.robot.start[:2])
         self._stalled = 0
+        self._pose: tuple[float, float, float] = tuple(float(v) for v in world.robot.start)
         self._inside = {n for n, reg in world.regions.items() if reg.contains(start)}
         node = self.planner.node.region
         self._at_region: str | None = node if node in self._inside else None
@@ -338,10 +371,30 @@ class Executive:
         self.trees_planned = 0
 
     # ------------------------------------------------------------------ public
-    def request(self, formula, mode=MissionMode.REPLACE) -> Plan:
+    def request(self, formula, mode=MissionMode.REPLACE, *, regions=None) -> Plan:
         """Change the mission (``replace`` / ``add`` / ``urgent``); re-plans at the next tick.
-        Raises the planner's errors (the previous mission then stays active)."""
-        plan = self.planner.request(formula, mode)
+
+        ``regions`` (optional, name -> :class:`~navigation.world.Region` or
+        ``{"center": [x, y], "radius": r}``) adds or moves regions first, exactly as
+        :meth:`set_regions`, and the formula may name them. Nothing is changed unless both the
+        regions and the mission are accepted.
+
+        Raises
+        ------
+        RegionError
+            A region breaks a rule of :meth:`set_regions` (an ``InvalidRequestError``).
+        TampError
+            The planner's errors (``LtlSyntaxError``, ``UnknownRegionError``,
+            ``UnsatisfiableError``, ``NoPlanError``, ``InvalidRequestError``).
+
+        In every case the previous mission, regions and plan stay active.
+        """
+        mode = MissionMode.parse(mode)
+        staged = self._stage_regions(regions, keep_mission=mode is not MissionMode.REPLACE) if regions else None
+        planner = staged["planner"] if staged is not None else self.planner
+        plan = planner.request(formula, mode)
+        if staged is not None:
+            self._commit_regions(staged)
         self.task = self.planner.mission
         self._cosafe = self._universal()
         self.accepting_visits = 0
@@ -349,6 +402,53 @@ class Executive:
             self.state = ExecutiveState.PLANNING
         self._need_plan = True
         return plan
+
+    def set_regions(self, regions) -> tuple[str, ...]:
+        """Add regions or move existing ones while the mission runs; returns the names that
+        changed (a region given with its current centre and radius is left alone).
+
+        Parameters
+        ----------
+        regions : mapping
+            Name -> :class:`~navigation.world.Region` or ``{"center": [x, y], "radius": r}``.
+
+        Rules (checked in this order for each new or moved region, against the map the
+        executive knows now, FORMATS.md's world validity rule):
+
+        * ``workspace``: the disc grown by the robot radius lies inside the workspace;
+        * ``free_space``: it is clear of every known obstacle and every obstacle estimate;
+        * ``disjoint``: the region disc is disjoint from every other region disc (after the
+          change);
+        * ``alphabet``: the running mission (and each pending urgent request) can read a visit
+          to the new region. A mission is translated over the regions it was given; when they
+          were all atomic propositions of its formula, its automaton (trimmed over their
+          letters) may lack the transitions for a region outside the formula. A region that
+          a current automaton state cannot read is refused; send it with mode ``replace``
+          (the new mission is translated over the new regions).
+
+        On success the planner's navigation map is rebuilt over the new regions (the mission's
+        automaton and its current states, the pending urgent requests and the evaluated
+        harmonic trees between unmoved regions are carried over; trees and costs touching a
+        moved region are dropped and re-evaluated lazily), perception keeps the new discs free,
+        and the executive re-plans at the next tick. The roadmaps hold obstacles only, so they
+        are unchanged. A disc that comes to contain the robot counts as entered at the next
+        tick (the trace reads it).
+
+        Raises
+        ------
+        RegionError
+            ``region`` and ``rule`` name the first violation; nothing is changed.
+        """
+        staged = self._stage_regions(regions, keep_mission=True)
+        if staged is None:
+            return ()
+        self._commit_regions(staged)
+        return tuple(staged["changed"])
+
+    @property
+    def regions(self) -> dict:
+        """The current regions, name -> :class:`~navigation.world.Region`."""
+        return self.world.regions
 
     @property
     def current_field(self) -> OrientedField | None:
@@ -386,6 +486,7 @@ class Executive:
         if not self.world.workspace.beta(np.array(p[:2])) < 0:
             return self._stop(ExecutiveState.ERROR, f"pose ({p[0]:.3f}, {p[1]:.3f}) is outside the workspace "
                                                     "(lost): stopped", t0)
+        self._pose = p
         if self.state is ExecutiveState.ERROR:  # a valid pose again: recover
             self.state, self._need_plan = ExecutiveState.PLANNING, True
         # mission events
@@ -421,6 +522,111 @@ class Executive:
             return self._result(0.0, 0.0, t0, replanned, map_changed)
         v, w = self._command(p)
         return self._result(v, w, t0, replanned, map_changed)
+
+    # ------------------------------------------------------------------ run-time regions
+    def _stage_regions(self, regions, *, keep_mission: bool):
+        """Validate ``regions`` and build the planner over the new region set, without touching
+        the executive; ``None`` when nothing changes. Raises :class:`RegionError`."""
+        if not isinstance(regions, Mapping):
+            raise InvalidRequestError(f"regions must be a mapping name -> region, got {type(regions).__name__}")
+        old = self.world.regions
+        new = dict(old)
+        changed: list[str] = []
+        for name, spec in regions.items():
+            reg = _as_region(name, spec)
+            cur = old.get(name)
+            if cur is not None and tuple(cur.center) == tuple(reg.center) and cur.radius == reg.radius:
+                continue
+            new[name] = reg
+            changed.append(name)
+        if not changed:
+            return None
+        self._check_regions(new, changed)
+        moved = {n for n in changed if n in old}
+        pose = self._pose
+        old_p = self.planner
+        planner = MissionPlanner(new, None, n_orient=self.config.n_orient, start=pose)
+        # NOTE: MissionPlanner has no public API to change its regions; the mission's state is
+        # carried over through its private fields (same package). The product is rebuilt over
+        # the new map; the automata and their current states do not depend on the map.
+        node = old_p.node
+        if node.region != START and node.region not in moved:
+            planner._node = planner.navmap.index[node]
+        else:
+            planner.set_position(pose)
+        names = planner.navmap.regions
+        m = old_p._mission
+        if m is not None:
+            letters = ops.singleton_letters(m.buchi, names)
+            if keep_mission:
+                _check_alphabet(m.text, m.buchi, old_p._states, letters, m.letters, changed)
+            planner._mission = _Mission(m.text, m.buchi, Product(planner.navmap, m.buchi), letters)
+            planner._states = old_p._states
+            planner._violated = old_p._violated
+        for u in old_p._urgent:  # urgent requests survive every mode, replace included
+            letters = ops.singleton_letters(u.buchi, names)
+            _check_alphabet(u.text, u.buchi, u.states, letters, ops.singleton_letters(u.buchi, old), changed)
+            planner._urgent.append(_Urgent(u.text, u.buchi, ops.universal_states(u.buchi, letters), u.states))
+        planner.visited = list(old_p.visited)
+        planner._seen_version = planner.navmap.version
+        return {"regions": new, "changed": changed, "moved": moved, "planner": planner, "pose": pose}
+
+    def _check_regions(self, regions: dict, changed) -> None:
+        """FORMATS.md's validity rule for the changed regions against the current map."""
+        r = self.radius
+        ws = self.world.workspace
+        obstacles = self.obstacles
+        n_known = len(self.known)
+        for name in changed:
+            reg = regions[name]
+            c = np.asarray(reg.center, dtype=float)
+            need = reg.radius + r
+            depth = -float(ws.distance(c))
+            if depth < need:
+                raise RegionError(name, RegionRule.WORKSPACE,
+                                  f"disc (radius {reg.radius:g}) grown by the robot radius {r:g} is not inside the "
+                                  f"workspace (its centre is {depth:.3g} m inside the boundary, {need:.3g} m needed)")
+            for j, o in enumerate(obstacles):
+                if math.dist(c, o.c) > o.bounding_radius + need:
+                    continue
+                d = float(o.distance(c))
+                if d < need:
+                    what = f"known obstacle {j}" if j < n_known else f"obstacle estimate {j - n_known}"
+                    raise RegionError(name, RegionRule.FREE_SPACE,
+                                      f"disc (radius {reg.radius:g}) grown by the robot radius {r:g} is not in free "
+                                      f"space: it overlaps {what} (centre {d:.3g} m from it, {need:.3g} m needed)")
+            for other, o in regions.items():
+                if other != name and math.dist(c, o.center) <= reg.radius + o.radius:
+                    raise RegionError(name, RegionRule.DISJOINT,
+                                      f"disc overlaps region {other!r} (regions must be pairwise disjoint)")
+
+    def _commit_regions(self, staged) -> None:
+        new, moved, planner, pose = staged["regions"], staged["moved"], staged["planner"], staged["pose"]
+        self.world = replace(self.world, regions=new)
+        self.planner = planner
+        self.task = planner.mission
+        # evaluated transitions between unmoved regions keep their trees and map costs
+        for key, res in list(self._pair.items()):
+            if key[0] in moved or key[1] in moved:
+                del self._pair[key]
+            elif isinstance(res, Exception):
+                planner.remove_edge(*key)
+            else:
+                planner.set_cost(key[0], key[1], res.cost)
+        self._start_pair.clear()
+        q = np.asarray(pose[:2], dtype=float)
+        self._inside = {n for n in self._inside if n in new and new[n].contains(q)}
+        if self._at_region is not None and (self._at_region in moved or self._at_region not in self._inside):
+            self._at_region = None
+        if self.omap is not None:  # perception keeps the region discs free
+            self.omap.regions = [(np.asarray(reg.center, dtype=float), float(reg.radius)) for reg in new.values()]
+        self._cosafe = self._universal()
+        if self.state in (ExecutiveState.DONE, ExecutiveState.BLOCKED):
+            self.state = ExecutiveState.PLANNING
+        self._need_plan = True
+        self._note("regions " + ", ".join(f"{n} {'moved to' if n in moved else 'added at'} "
+                                          f"({new[n].center[0]:g}, {new[n].center[1]:g}) r {new[n].radius:g}"
+                                          for n in staged["changed"]))
 
     # ------------------------------------------------------------------ helpers: output
     def _note(self, msg: str) -> None:
@@ -761,6 +967,44 @@ class Executive:
         else:
             self._stalled = 0
         return cmd.v, cmd.omega
+
+
+def _as_region(name, spec) -> Region:
+    """A :class:`Region` from a Region or ``{"center", "radius"}``; RegionError (format)."""
+    if isinstance(spec, Region):
+        if spec.name != name:
+            raise RegionError(str(name), RegionRule.FORMAT, f"region named {spec.name!r} given under {name!r}")
+        return spec
+    try:
+        if not isinstance(spec, Mapping):
+            raise WorldError(f"expected {{\"center\": [x, y], \"radius\": r}}, got {type(spec).__name__}")
+        return Region(name, spec["center"], spec["radius"])
+    except KeyError as err:
+        raise RegionError(str(name), RegionRule.FORMAT, f"missing field {err.args[0]!r}") from None
+    except WorldError as err:
+        raise RegionError(str(name), RegionRule.FORMAT, str(err)) from None
+
+
+def _check_alphabet(text, buchi, states, letters, old_letters, changed) -> None:
+    """RegionError (alphabet) when a letter new to ``buchi`` (a new region outside its formula)
+    has no successor from a state reachable from ``states`` (see Executive.set_regions)."""
+    fresh = set(letters) - set(old_letters)
+    if not fresh or not states:
+        return
+    seen, todo = set(states), list(states)
+    while todo:
+        q = todo.pop()
+        for e in buchi.edges[q]:
+            if e.dst not in seen and ops.edge_usable(e.guard, letters):
+                seen.add(e.dst)
+                todo.append(e.dst)
+    for mask in fresh:
+        if any(not buchi.successors(q, mask) for q in seen):
+            name = next((n for n in changed if buchi.mask([n]) == mask), changed[0])
+            raise RegionError(name, RegionRule.ALPHABET,
+                              f"the running mission {text!r} was translated over regions that are all in its "
+                              "formula and cannot read a visit to a region outside it; send the region with "
+                              "mode 'replace' (the whole mission)")
 
 
 def _pass_through_headings(wps):

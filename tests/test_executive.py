@@ -194,3 +194,123 @@ def test_known_obstacles_that_are_not_a_forest_are_left_to_perception():
     # all obstacles of simple are a forest: no perception at all
     ex = Executive(shared_world("simple"), known=True)
     assert len(ex.known) == 4 and ex.omap is None
+
+
+# ---------------------------------------------------------------------- run-time regions
+D = {"center": [2.0, 0.4], "radius": 0.15}  # free in simple.json, away from a, b, c
+
+
+def _drive(ex, sim, ticks: int, stop=lambda ex: ex.state is ExecutiveState.DONE):
+    for _ in range(ticks):
+        res = ex.tick(sim.pose_message(), scan=sim.scan_message(), now=sim.time)
+        assert math.isfinite(res.v) and math.isfinite(res.omega)
+        if stop(ex):
+            return res
+        sim.step((res.v, res.omega))
+    return res
+
+
+def test_an_urgent_request_for_a_new_region_is_served_first_and_the_mission_completes():
+    world = shared_world("simple")
+    ex = Executive(world, "F a & F b")
+    sim = Simulator(world, seed=0)
+    _drive(ex, sim, 20)
+    assert ex.state is ExecutiveState.EXECUTING and not ex.visited
+    plan = ex.request("F d", "urgent", regions={"d": D})
+    assert plan.urgent_regions == ("d",)
+    assert "d" in ex.regions and "d" not in world.regions  # the world object is not mutated
+    _drive(ex, sim, 3000)
+    assert ex.state is ExecutiveState.DONE, ex.messages[-5:]
+    assert ex.visited[0] == "d" and {"a", "b"} <= set(ex.visited), ex.visited
+    assert not sim.metrics.collisions
+
+
+def test_a_moved_region_is_where_the_robot_goes():
+    world = shared_world("simple")
+    ex = Executive(world, "F b")
+    sim = Simulator(world, seed=0)
+    _drive(ex, sim, 20)
+    assert ex.target == "b"
+    new_b = {"center": [1.5, 2.6], "radius": 0.15}
+    assert ex.set_regions({"b": new_b, "a": world.regions["a"]}) == ("b",)  # a is unchanged
+    res = _drive(ex, sim, 3000)
+    assert ex.state is ExecutiveState.DONE, ex.messages[-5:]
+    assert ex.visited == ["b"]
+    x, y, _ = sim.pose
+    assert math.dist((x, y), new_b["center"]) <= new_b["radius"]
+    assert "b moved to (1.5, 2.6)" in " ".join(ex.messages)
+    assert res.status["state"] == "done"
+
+
+@pytest.mark.parametrize("regions, rule", [
+    ({"d": {"center": [3.9, 1.5], "radius": 0.15}}, "workspace"),
+    ({"d": {"center": [1.0, 1.5], "radius": 0.1}}, "free_space"),      # on obstacle 0 (known)
+    ({"d": {"center": [1.25, 1.5], "radius": 0.1}}, "free_space"),     # clear of it, not with the robot radius
+    ({"d": {"center": [0.7, 0.5], "radius": 0.1}}, "disjoint"),        # overlaps a
+    ({"a": {"center": [3.5, 2.3], "radius": 0.15}}, "disjoint"),       # a moved onto b
+    ({"d": {"center": [2.0, 0.4], "radius": -1.0}}, "format"),
+    ({"d": {"centre": [2.0, 0.4], "radius": 0.1}}, "format"),
+])
+def test_refused_regions_name_the_region_and_rule_and_change_nothing(regions, rule):
+    from tamp.errors import InvalidRequestError
+    from tamp.executive import RegionError
+
+    world = shared_world("simple")
+    ex = Executive(world, "F a & F b", known=True)
+    sim = Simulator(world, seed=0)
+    _drive(ex, sim, 10)
+    before = (ex.status(), dict(ex.regions), ex.planner, ex.task)
+    for call in (lambda: ex.set_regions(regions), lambda: ex.request("F b", "add", regions=regions)):
+        with pytest.raises(RegionError) as err:
+            call()
+        assert isinstance(err.value, InvalidRequestError)
+        assert err.value.rule.value == rule and err.value.region == next(iter(regions))
+        assert str(err.value).startswith(f"regions.{err.value.region}:") and f"[rule: {rule}]" in str(err.value)
+        assert (ex.status(), dict(ex.regions), ex.planner, ex.task) == before
+
+
+def test_a_refused_mission_keeps_the_regions_out():
+    from tamp.errors import UnsatisfiableError
+
+    world = shared_world("simple")
+    ex = Executive(world, "F a & F b")
+    plan = ex.plan
+    with pytest.raises(UnsatisfiableError):
+        ex.request("F d & G !d", "replace", regions={"d": D})
+    assert "d" not in ex.regions and ex.task == "F a & F b" and ex.plan is plan
+    assert ex.request("F d", "add", regions={"d": D}).prefix_regions  # the same region is fine with a mission
+    assert "d" in ex.regions and "F d" in ex.task
+
+
+def test_a_mission_over_all_regions_that_cannot_read_a_new_one_needs_replace():
+    world = shared_world("simple")
+    ex = Executive(world, "(a U b) & G !c")  # every region is in the formula; a visit to d breaks a U b
+    with pytest.raises(Exception, match=r"regions\.d: .*\[rule: alphabet\]"):
+        ex.set_regions({"d": D})
+    assert "d" not in ex.regions
+    ex.request("F d & F b", "replace", regions={"d": D})
+    assert "d" in ex.regions and ex.task == "F d & F b"
+
+
+def test_trees_between_unmoved_regions_are_kept():
+    world = shared_world("simple")
+    ex = Executive(world, "G F a & G F b", known=True)
+    sim = Simulator(world, seed=0)
+    _drive(ex, sim, 5)
+    pairs = dict(ex._pair)
+    assert ("a", "b") in pairs
+    cost = ex.planner.navmap.cost(("a", 0), ("b", 0))
+    assert cost > ex.planner.navmap.initial_cost(("a", 0), ("b", 0))  # the tree's cost
+    ex.set_regions({"d": D, "c": {"center": [3.5, 0.3], "radius": 0.15}})
+    assert all(ex._pair.get(k) is v for k, v in pairs.items() if "c" not in k)
+    assert not any("c" in k for k in ex._pair)
+    assert ex.planner.navmap.cost(("a", 0), ("b", 0)) == cost  # the evaluated cost, not the initial one
+
+
+def test_a_region_placed_around_the_robot_counts_as_entered():
+    world = shared_world("simple")
+    ex = Executive(world, "F a", known=True)
+    x, y, _ = world.robot.start
+    ex.set_regions({"s": {"center": [x, y], "radius": 0.1}})
+    ex.tick(world.robot.start, now=0.0)
+    assert ex.visited == ["s"] and ex.state is ExecutiveState.EXECUTING and ex.target == "a"

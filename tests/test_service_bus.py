@@ -39,7 +39,8 @@ def test_task_replies_follow_the_contract_and_refusals_keep_the_mission(simple):
             ([1, 2, 3], "invalid_request"),
             ({"task": "F a"}, "invalid_request"),
             (b"\xff\xfe garbage", "invalid_request"),
-            ({"formula": "F a", "regions": {"d": {"center": [1, 1], "radius": 0.1}}}, "invalid_request"),
+            # a run-time region on a known obstacle (simple.json knows all of them)
+            ({"formula": "F a", "regions": {"d": {"center": [1.0, 1.5], "radius": 0.1}}}, "invalid_request"),
         ]
         for payload, code in cases:
             ok, rep = ask(cl, prefix, payload)
@@ -142,3 +143,49 @@ def test_liveliness_token_and_latched_status(simple):
         node.stop()
         node.close()
         assert wait_for(lambda: not any(r.ok for r in cl.liveliness().get(f"{prefix}/alive", timeout=1.0)), 5.0)
+
+
+def test_task_with_new_regions_is_served_over_the_bus_and_refused_regions_change_nothing(simple):
+    brain = ExecutiveBrain(simple, "F a & F b")
+    sim = Simulator(simple, seed=0)
+    d = {"center": [2.0, 0.4], "radius": 0.15}
+    with running_node(brain, rate=20.0, watchdog=2.0) as (node, cl, prefix):
+        status = Recorder(cl, f"{prefix}/status")
+        cmds = Recorder(cl, f"{prefix}/cmd_vel")
+        pose = cl.declare_publisher(f"{prefix}/pose")
+        scan = cl.declare_publisher(f"{prefix}/scan")
+
+        def drive(seconds, until=lambda: False):
+            """Closed loop over the bus: the simulator executes the latest cmd_vel."""
+            t_end = time.monotonic() + seconds
+            while time.monotonic() < t_end and not until():
+                c = cmds.last
+                sim.step((c["v"], c["omega"]) if c else (0.0, 0.0))
+                pose.put(json.dumps(sim.pose_message()))
+                scan.put(json.dumps(sim.scan_message()))
+                time.sleep(0.05)
+
+        drive(1.0)
+        assert wait_for(lambda: status.last and status.last["state"] == "executing", 5.0), status.last
+        # refused: each names the region and the rule; the mission and the regions stay
+        accepted = brain.status()["task"]
+        for regions, rule in (({"d": {"center": [3.9, 1.5], "radius": 0.15}}, "workspace"),
+                              ({"d": {"center": [1.0, 1.5], "radius": 0.1}}, "free_space"),
+                              ({"d": {"center": [0.7, 0.5], "radius": 0.1}}, "disjoint")):
+            ok, rep = ask(cl, prefix, {"formula": "F d", "mode": "urgent", "regions": regions})
+            assert not ok and rep["error"]["code"] == "invalid_request", rep
+            msg = rep["error"]["message"]
+            assert msg.startswith("regions.d:") and f"[rule: {rule}]" in msg, msg
+            assert brain.status()["task"] == accepted and "d" not in brain.regions()
+        # accepted: the new region is served first, then the mission goes on
+        ok, rep = ask(cl, prefix, {"formula": "F d", "mode": "urgent", "regions": {"d": d}})
+        assert ok and rep["plan"]["urgent"] == ["d"], rep
+        assert "d" in brain.regions()
+        assert wait_for(lambda: status.last["target"] == "d", 5.0), status.last
+        drive(40.0, until=lambda: "d" in brain.executive.visited)
+        assert brain.executive.visited[:1] == ["d"], brain.executive.visited
+        assert not sim.metrics.collisions
+        pose.undeclare()
+        scan.undeclare()
+        cmds.close()
+        status.close()
