@@ -76,7 +76,8 @@ from scipy.spatial import cKDTree
 
 from ._memo import Memo
 from .errors import ForestError
-from .geometry import COS, CX, CY, HH, HW, S, SIN, Squircle, boundary_jet_rows, clear_geometry_cache, pack
+from .geometry import (COS, CX, CY, HH, HW, S, SIN, Squircle, boundary_jet_rows, clear_geometry_cache, pack,
+                       signed_distance_rows)
 
 __all__ = ["WORKSPACE", "NO_PARENT", "Forest", "build_forest", "separation", "common_center", "clear_cache"]
 
@@ -87,12 +88,11 @@ NO_PARENT = -2
 
 _SAMPLES = 256  # boundary samples per obstacle
 _WS_SAMPLES = 1024  # boundary samples of the workspace
-_CENTER_GRID = 17  # coarse grid (per axis) for the common centre
-_CENTER_M = 7  # pattern-search grid (per axis) for the common centre
-_CENTER_ROTATIONS = (0.39,)  # rotated re-polls of the pattern search
+_POLY = 128  # vertices of the polygons inscribed in a child and its parent (common centres)
+_WS_TANGENTS = 8  # tangent lines of the workspace tried for a child of the workspace
+_THIN_ROTATIONS = (0.39,)  # rotated re-polls of the thin-intersection pattern search
 _THIN = 0.01  # common-centre depths below this are refined with exact distances
 _CONTAINED = 1e-12  # beta tolerance of the containment test
-_PRUNE = True  # skip k-d tree queries at common-centre candidates that provably cannot win
 _MEMO_SIZE = 65536  # pairwise results kept by the memo (a few hundred bytes each)
 _BODY_SIZE = 1024  # boundary-sample sets kept by the memo
 
@@ -114,12 +114,12 @@ def clear_cache() -> None:
     clear_geometry_cache()
 
 
-def _body(sq: Squircle, n: int, n_dense: int = 1024) -> "_Body":
+def _body(sq: Squircle, n: int) -> "_Body":
     """Memoised :class:`_Body` of ``sq``."""
-    key = (sq, n, n_dense)
+    key = (sq, n)
     b = _BODIES.get(key)
     if b is None:
-        b = _Body(sq, n, n_dense)
+        b = _Body(sq, n)
         _BODIES.put(key, b)
     return b
 
@@ -318,109 +318,26 @@ def _pattern_min(fun, c0: np.ndarray, w0: np.ndarray, f0: np.ndarray, *, m: int,
 
 
 class _Body:
-    """Boundary samples of one squircle, with its packed row and a k-d tree of the samples."""
+    """Boundary samples of one squircle (evenly spaced in arc length) with its packed row."""
 
-    __slots__ = ("sq", "row", "psi", "pts", "w0", "spacing", "tree", "lo", "hi", "radius", "n_dense", "_dense",
-                 "_dense_tree")
+    __slots__ = ("sq", "row", "psi", "pts", "w0", "spacing", "radius")
 
-    def __init__(self, sq: Squircle, n: int, n_dense: int = 1024):
+    def __init__(self, sq: Squircle, n: int):
         self.sq = sq
-        self.n_dense = n_dense
-        self._dense = None
-        self._dense_tree = None
         self.row = pack([sq])[0]
         self.psi = sq.boundary_psi(n)
         self.pts = sq.point_at(self.psi)
         gaps = np.diff(np.concatenate((self.psi, [self.psi[0] + 2.0 * np.pi])))
         self.w0 = 1.5 * float(gaps.max())
         self.spacing = float(np.max(np.linalg.norm(self.pts - np.roll(self.pts, 1, axis=0), axis=1)))
-        self.tree = cKDTree(self.pts)
-        self.lo = self.pts.min(axis=0)
-        self.hi = self.pts.max(axis=0)
         self.radius = sq.bounding_radius
-
-    def dense_pts(self) -> np.ndarray:
-        """``n_dense`` boundary samples (computed on first use)."""
-        if self._dense is None:
-            self._dense = self.sq.boundary_points(self.n_dense)
-        return self._dense
-
-    def dense_tree(self) -> cKDTree:
-        """k-d tree of :meth:`dense_pts` (built on first use)."""
-        if self._dense_tree is None:
-            self._dense_tree = cKDTree(self.dense_pts())
-        return self._dense_tree
-
-
-class _Slabs:
-    """Nearest boundary samples of many bodies with one k-d tree query.
-
-    The samples of body ``b`` are lifted to the plane ``z = slot(b) * gap`` of 3-D space and a
-    query point for body ``b`` is lifted to the same plane; with ``gap`` far larger than any
-    in-plane distance the nearest lifted sample is the nearest sample of ``b`` itself, at the
-    same (planar) distance. Replaces one k-d tree query per body by one query in total.
-    """
-
-    def __init__(self, bodies: Sequence[_Body], ids, dense: bool):
-        ids = sorted(set(int(b) for b in ids))
-        self.bodies = bodies
-        self.slot = np.full(len(bodies), -1, dtype=np.intp)  # body index -> plane number
-        self.slot[ids] = np.arange(len(ids))
-        pts = [bodies[b].dense_pts() if dense else bodies[b].pts for b in ids]
-        allp = np.concatenate(pts) if pts else np.zeros((0, 2))
-        self.offset = np.cumsum([0] + [len(p) for p in pts])
-        lo, hi = (allp.min(axis=0), allp.max(axis=0)) if len(allp) else (np.zeros(2), np.zeros(2))
-        self.reach = 100.0 * (float(np.hypot(*(hi - lo))) + 1.0)  # queries must lie this close
-        self.gap = 4.0 * self.reach
-        z = np.repeat(np.arange(len(ids)) * self.gap, [len(p) for p in pts])
-        self.tree = cKDTree(np.column_stack((allp, z))) if len(allp) else None
-        self.centre = 0.5 * (lo + hi)
-
-    def query(self, q: np.ndarray, bid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Distances ``(K,)`` from ``q (K, 2)`` to the nearest samples of bodies ``bid (K,)`` and
-        the samples' indices within their body."""
-        sl = self.slot[bid]
-        if np.any(sl < 0):
-            raise ValueError("query for a body without samples in the slab k-d tree")
-        far = np.hypot(*(q - self.centre).T) > self.reach if len(q) else np.zeros(0, bool)
-        if np.any(far):
-            raise ValueError("query point too far from the samples for the slab k-d tree")
-        d, k = self.tree.query(np.column_stack((q, sl * self.gap)))
-        return d, k - self.offset[sl]
-
-
-class _PerBody:
-    """Same queries as :class:`_Slabs`, answered by each body's own (memoised) k-d tree: cheaper
-    than building a slab tree when only a few bodies are involved."""
-
-    def __init__(self, bodies: Sequence[_Body], dense: bool):
-        self.bodies = bodies
-        self.dense = dense
-
-    def query(self, q: np.ndarray, bid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        d, k = np.empty(len(q)), np.empty(len(q), dtype=np.intp)
-        for b in np.unique(bid):
-            sel = np.nonzero(bid == b)[0]
-            tree = self.bodies[b].dense_tree() if self.dense else self.bodies[b].tree
-            d[sel], k[sel] = tree.query(q[sel])
-        return d, k
-
-
-def _nearest_samples(bodies: Sequence[_Body], ids, dense: bool):
-    """A nearest-boundary-sample index over ``bodies[ids]``: one slab tree for many bodies, the
-    bodies' own trees for a few (identical answers)."""
-    ids = np.unique(np.asarray(ids, dtype=np.intp))
-    return _Slabs(bodies, ids, dense) if len(ids) > 4 else _PerBody(bodies, dense)
 
 
 def _signed_distance(bodies: Sequence[_Body], bid: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Exact signed distances of points ``q (K, 2)`` to bodies ``bid (K,)`` (negative inside):
-    :meth:`Squircle.distance`."""
-    out = np.empty(len(q))
-    for b in np.unique(bid):
-        sel = np.nonzero(bid == b)[0]
-        out[sel] = bodies[b].sq.distance(q[sel])
-    return out
+    :func:`~navigation.geometry.signed_distance_rows`."""
+    bid = np.asarray(bid, dtype=np.intp)
+    return signed_distance_rows(np.stack([bodies[b].row for b in bid]) if len(bid) else np.zeros((0, 7)), q)
 
 
 def _pair_distance(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, tol: float = 1e-12):
@@ -492,7 +409,7 @@ def _newton_pair(PI: np.ndarray, PJ: np.ndarray, c0: np.ndarray, w0: np.ndarray,
     from ``c0 (K, 2)`` (the closest sample pair, value ``f0``), one problem per row.
 
     Safeguarded Newton with the exact derivatives of :func:`~navigation.geometry.boundary_jet_rows`:
-    a step is the Newton step where the Hessian is positive definite and a scaled gradient step
+    a step is the Newton step where the Hessian is positive definite and a Levenberg-Marquardt step
     elsewhere, clipped to the sampling window ``w0`` and halved until ``f`` does not increase
     (so ``f`` never exceeds ``f0``). Stops when every step is below ``tol`` (radians).
     """
@@ -511,9 +428,13 @@ def _newton_pair(PI: np.ndarray, PJ: np.ndarray, c0: np.ndarray, w0: np.ndarray,
         hst = -2.0 * (a1 * b1).sum(-1)
         det = hss * htt - hst * hst
         newton = (hss > 0) & (det > 1e-12 * np.maximum(hss * htt, 1e-300))
-        safe = np.where(newton, det, 1.0)
-        step = np.where(newton[:, None], -np.stack((htt * gs - hst * gt, hss * gt - hst * gs), 1) / safe[:, None],
-                        -np.stack((gs / (np.abs(hss) + 1.0), gt / (np.abs(htt) + 1.0)), 1))
+        # elsewhere shift the Hessian by its smallest eigenvalue and a little more (Levenberg-
+        # Marquardt): the step follows curved flat valleys (nearly parallel faces) instead of
+        # zigzagging across them
+        low = 0.5 * (hss + htt) - np.sqrt(0.25 * (hss - htt) ** 2 + hst * hst)
+        lam = np.where(newton, 0.0, np.maximum(-low, 0.0) + 1e-3 * (np.abs(hss) + np.abs(htt)) + 1e-300)
+        hs, ht = hss + lam, htt + lam
+        step = -np.stack((ht * gs - hst * gt, hs * gt - hst * gs), 1) / (hs * ht - hst * hst)[:, None]
         step = np.clip(step, -w0[r], w0[r])
         done = newton & (np.abs(step).max(axis=1) <= tol)  # converged: the Newton step is tiny
         active[r[done]] = False
@@ -522,20 +443,26 @@ def _newton_pair(PI: np.ndarray, PJ: np.ndarray, c0: np.ndarray, w0: np.ndarray,
             break
         moved = np.zeros(len(r), bool)
         taken = np.zeros(len(r))  # size of the accepted step
+        before = f[r].copy()
+        todo = np.arange(len(r))  # rows (of r) still backtracking
         for _ in range(16):  # backtracking
-            trial = c[r] + step
-            pa = _xy(PI[r], trial[:, 0])
-            pb = _xy(PJ[r], trial[:, 1])
-            ft = ((pa - pb) ** 2).sum(-1)
-            take = (ft <= f[r]) & ~moved
-            c[r[take]] = trial[take]
-            f[r[take]] = ft[take]
-            taken[take] = np.abs(step[take]).max(axis=1)
-            moved |= take
-            if moved.all():
+            rt = r[todo]
+            trial = c[rt] + step[todo]
+            ft = ((_xy(PI[rt], trial[:, 0]) - _xy(PJ[rt], trial[:, 1])) ** 2).sum(-1)
+            ok = ft <= f[rt]
+            acc = todo[ok]
+            c[r[acc]] = trial[ok]
+            f[r[acc]] = ft[ok]
+            taken[acc] = np.abs(step[acc]).max(axis=1)
+            moved[acc] = True
+            todo = todo[~ok]
+            if todo.size == 0:
                 break
-            step = 0.5 * step
-        active[r] = moved & ~(newton & (taken <= tol))
+            step[todo] *= 0.5
+        # a row stops at a tiny Newton step, when no step along its direction decreases f, or when
+        # f decreased by less than 1e-14 relative (flat valleys: parallel faces slide freely)
+        stalled = before - f[r] <= 1e-14 * before
+        active[r] = moved & ~(newton & (taken <= tol)) & ~stalled
     return c, f
 
 
@@ -574,102 +501,173 @@ def _arcs_outside(values: np.ndarray) -> int:
     return int(np.count_nonzero(out & ~np.roll(out, 1)))
 
 
-def _common_centers(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, outside: np.ndarray,
-                    tol: float = 5e-5) -> tuple[np.ndarray, np.ndarray]:
-    """Points approximately maximising ``min(depth in I, depth in J)`` (or ``distance outside J``
-    where ``outside``), i.e. the centre of the largest disc in ``O_I ∩ O_J`` (``O_I \\ W``).
+def _polygon_constraints(P: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Half-planes ``a . q <= b`` of the polygons inscribed in the squircles ``P (K, 7)``.
 
-    The depths are approximated by distances to dense boundary samples (k-d trees; the error is
-    about ``h^2 / (8 depth)`` for a sample spacing ``h``, i.e. micrometres at useful depths). A
-    coarse grid over the common bounding box is refined by a 2-D pattern search; the depth at
-    the result is then evaluated exactly. Returns ``(points (E, 2), depth (E,))``.
+    The vertices are ``n`` boundary points at evenly spaced angles, counter-clockwise; the
+    polygon lies inside its (convex) squircle, so its depth ``min_k (b_k - a_k . q)`` (``a_k`` the
+    unit outward edge normals) is a lower bound of the depth in the squircle. Returns
+    ``(a (K, n, 2), b (K, n), vertices (K, n, 2))``; edge ``k`` runs from vertex ``k`` to ``k + 1``.
+    """
+    psi = np.broadcast_to(np.linspace(0.0, 2.0 * np.pi, n, endpoint=False), (len(P), n))
+    v = _xy(P, psi)
+    e = np.roll(v, -1, axis=1) - v
+    a = np.stack((e[..., 1], -e[..., 0]), axis=-1)
+    a /= np.linalg.norm(a, axis=-1, keepdims=True)
+    return a, (a * v).sum(-1), v
+
+
+def _soft_min(ax: np.ndarray, ay: np.ndarray, b: np.ndarray, q: np.ndarray, tau: np.ndarray):
+    """Soft minimum ``-tau log sum_k exp(-s_k / tau)`` of the slacks ``s = b - a . q`` per row,
+    its weights (the soft-min's gradient with respect to ``s``) and the exact minimum."""
+    s = b - ax * q[:, 0, None] - ay * q[:, 1, None]
+    m = s.min(axis=1)
+    z = np.exp(-(s - m[:, None]) / tau[:, None])
+    zs = z.sum(axis=1)
+    return m - tau * np.log(zs), z / zs[:, None], m
+
+
+def _max_min_slack(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarray, scale: np.ndarray, *,
+                   stages: int = 5, steps: int = 12, grid: int = 9) -> tuple[np.ndarray, np.ndarray]:
+    """Maximise ``t(q) = min_k (b_k - a_k . q)`` per row: the Chebyshev centre of the polygon of
+    half-planes ``a (E, K, 2)`` (unit normals), ``b (E, K)``, i.e. a 3-variable linear program.
+
+    Starts at the best point of a ``grid x grid`` grid over the box ``[lo, hi]`` (``(E, 2)``).
+    ``t`` is concave, and so is its soft minimum ``t_tau`` (:func:`_soft_min`;
+    ``t - tau log K <= t_tau <= t``), which is smooth with one maximiser. Newton steps on
+    ``t_tau`` (exact gradient ``-sum_k w_k a_k`` and Hessian ``-Cov_w(a) / tau``), backtracked
+    until ``t_tau`` does not decrease and limited to ``scale``, follow ``tau`` from
+    ``0.05 scale`` down by 8x per stage; a row leaves a stage when its Newton step is below
+    ``1e-6 scale``. Returns the points ``(E, 2)`` and their exact ``t`` (within about
+    ``1e-5 scale`` of the optimum; tested against HiGHS).
+    """
+    E = len(a)
+    ax, ay = np.ascontiguousarray(a[..., 0]), np.ascontiguousarray(a[..., 1])
+    axx, axy, ayy = ax * ax, ax * ay, ay * ay
+    u = (np.arange(grid) + 0.5) / grid
+    gx, gy = np.meshgrid(u, u, indexing="ij")
+    px = lo[:, 0, None] + (hi - lo)[:, 0, None] * gx.ravel()[None]  # (E, grid^2)
+    py = lo[:, 1, None] + (hi - lo)[:, 1, None] * gy.ravel()[None]
+    t0 = (b[:, None, :] - ax[:, None, :] * px[:, :, None] - ay[:, None, :] * py[:, :, None]).min(axis=2)
+    k = np.argmax(t0, axis=1)
+    c = np.stack((px[np.arange(E), k], py[np.arange(E), k]), axis=1)
+    tau = 0.05 * scale
+    for _ in range(stages):
+        f, w, _ = _soft_min(ax, ay, b, c, tau)
+        act = np.arange(E)
+        for _ in range(steps):
+            wa = w[act]
+            gx_, gy_ = -(wa * ax[act]).sum(1), -(wa * ay[act]).sum(1)
+            cxx = (wa * axx[act]).sum(1) - gx_ * gx_ + 1e-12
+            cxy = (wa * axy[act]).sum(1) - gx_ * gy_
+            cyy = (wa * ayy[act]).sum(1) - gy_ * gy_ + 1e-12
+            step = (tau[act] / (cxx * cyy - cxy * cxy))[:, None] * \
+                np.stack((cyy * gx_ - cxy * gy_, cxx * gy_ - cxy * gx_), 1)
+            length = np.hypot(step[:, 0], step[:, 1])
+            keep = length > 1e-6 * scale[act]
+            act, step, length = act[keep], step[keep], length[keep]
+            if act.size == 0:
+                break
+            step *= np.minimum(1.0, scale[act] / length)[:, None]
+            todo, st = act, step
+            for _ in range(30):  # backtracking
+                ft, wt, _ = _soft_min(ax[todo], ay[todo], b[todo], c[todo] + st, tau[todo])
+                ok = ft >= f[todo]
+                acc = todo[ok]
+                c[acc] += st[ok]
+                f[acc], w[acc] = ft[ok], wt[ok]
+                todo, st = todo[~ok], 0.5 * st[~ok]
+                if todo.size == 0:
+                    break
+        tau = 0.125 * tau
+    return c, _soft_min(ax, ay, b, c, tau)[2]
+
+
+def _common_centers(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, outside: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Points deep inside ``O_I ∩ O_J`` (``O_I \\ W`` where ``outside``: ``J`` is the workspace)
+    and their exact depths ``min(depth in I, depth in J)`` (``distance outside J``).
+
+    A child and its parent: the centre of the largest disc inside both inscribed polygons
+    (:func:`_polygon_constraints`, a linear program solved by :func:`_max_min_slack`); the
+    disc lies in both squircles, and its radius is below the true largest one by at most the
+    polygons' sagitta (sub-millimetre). A child of the workspace: ``O_I \\ W`` is not convex,
+    but the points beyond a tangent line of the (convex) workspace at one of its boundary
+    points inside ``O_I`` lie outside ``W`` by at least their distance to that line; each of up
+    to ``_WS_TANGENTS`` such lines gives a linear program (the polygon of ``O_I`` and the
+    half-plane beyond the line) and the best result is kept. The depth at the chosen point is
+    then evaluated exactly (:meth:`Squircle.distance`); intersections thinner than ``_THIN``
+    are refined on exact distances (:func:`_thin_centers`). Returns ``(points (E, 2), depth (E,))``.
     """
     E = len(I)
     if E == 0:
         return np.empty((0, 2)), np.empty(0)
     sgn = np.where(outside, 1.0, -1.0)  # depth in J = sgn * signed distance to J
-    lo = np.empty((E, 2))
-    hi = np.empty((E, 2))
-    for e in range(E):
-        a, b = bodies[I[e]], bodies[J[e]]
-        lo[e], hi[e] = (a.lo, a.hi) if outside[e] else (np.maximum(a.lo, b.lo), np.minimum(a.hi, b.hi))
-    hi = np.maximum(hi, lo + 1e-9)
-
     PI = np.stack([bodies[i].row for i in I])
     PJ = np.stack([bodies[j].row for j in J])
+    aI, bI, vI = _polygon_constraints(PI, _POLY)
+    inner = np.nonzero(~outside)[0]
+    aJ, bJ, vJ = _polygon_constraints(PJ[inner], _POLY)
+    ws = np.nonzero(outside)[0]
+    if ws.size:  # tangent lines of the workspace at its boundary samples inside O_I
+        body = bodies[J[ws[0]]]
+        vals = _beta(PI[ws], np.broadcast_to(body.pts, (len(ws),) + body.pts.shape))  # (k, n)
+        out_w = _beta(np.broadcast_to(body.row, (len(ws), 7)), vI[ws]) >= 0  # vertices of O_I outside W
+        picks = []
+        for r in range(len(ws)):
+            idx = np.nonzero(vals[r] < 0)[0]  # one arc: the child crosses the boundary once
+            if idx.size == 0:
+                idx = np.array([int(np.argmin(vals[r]))])
+            picks.append(np.unique(idx[np.linspace(0, len(idx) - 1, min(_WS_TANGENTS, len(idx))).round().astype(int)]))
+        psi = body.psi[np.concatenate(picks)]
+        x, dx, _ = boundary_jet_rows(np.broadcast_to(body.row, (len(psi), 7)), psi)
+        normal = np.stack((dx[:, 1], -dx[:, 0]), axis=1) / np.linalg.norm(dx, axis=1, keepdims=True)
+        h = (normal * x).sum(-1)
+    # One LP per problem, with only the edges whose bounding box meets the box that contains the
+    # intersection (the polygon O_I ∩ O_J is the intersection of the half-planes of its own edges,
+    # pieces of such edges, so the others are redundant and the optimum is unchanged).
+    owner, A, B, LO, HI, L = [], [], [], [], [], []
 
-    slabs = _nearest_samples(bodies, np.concatenate((I, J)), dense=True)
-    # half the largest gap between dense samples: a sampled depth exceeds the exact one by less
-    half_gap = {b: 0.5 * float(np.max(np.linalg.norm(np.diff(bodies[b].dense_pts(), axis=0, append=bodies[b].dense_pts()[:1]),
-                                                    axis=1))) for b in np.unique(np.concatenate((I, J)))}
-    gap_i = np.array([half_gap[i] for i in I])
-    gap_j = np.where(outside, np.inf, np.array([half_gap[j] for j in J]))
+    def near(v, lo, hi):
+        w = np.roll(v, -1, axis=0)
+        return np.all((np.minimum(v, w) <= hi) & (np.maximum(v, w) >= lo), axis=1)
 
-    def rect_depth(P, q):
-        # min(hw - |x|, hh - |y|) in the squircle's frame: >= the depth in its bounding
-        # rectangle, which contains the squircle, hence >= the depth in the squircle
-        C = _cols(P, 2)
-        dx = q[..., 0] - C[CX]
-        dy = q[..., 1] - C[CY]
-        c, sn = C[COS], C[SIN]
-        return np.minimum(C[HW] - np.abs(dx * c + dy * sn), C[HH] - np.abs(dy * c - dx * sn))
-
-    def bound(rows, q):
-        # lower bound of the objective (-depth) from the rectangle depths
-        return -np.minimum(rect_depth(PI[rows], q) + gap_i[rows, None],
-                           np.where(outside[rows, None], np.inf, rect_depth(PJ[rows], q) + gap_j[rows, None]))
-
-    def objective(rows, q, best=None):
-        # approximate depths: distance to the nearest dense boundary sample, signed by beta
-        k, n = q.shape[:2]
-        if best is None:  # the coarse grid: every value
-            qq = q.reshape(-1, 2)
-            d, _ = slabs.query(np.concatenate((qq, qq)),
-                               np.concatenate((np.repeat(I[rows], n), np.repeat(J[rows], n))))
-            dist = d.reshape(2, k, n)
-            da = np.where(_beta(PI[rows], q) < 0, dist[0], -dist[0])
-            db = np.where(_beta(PJ[rows], q) < 0, dist[1], -dist[1]) * np.where(outside[rows], -1.0, 1.0)[:, None]
-            return -np.minimum(da, db)
-        # pattern rounds: a point whose depth bound in I or J is <= the best depth -best cannot be
-        # better; it gets the bound (>= best), and the k-d tree queries are skipped for it
-        out = bound(rows, q)
-        r, p = np.nonzero(out <= best[:, None])  # skipped points are strictly worse than best
-        if r.size:
-            qs = q[r, p]
-            d, _ = slabs.query(qs, I[rows[r]])
-            da = np.where(_beta(PI[rows[r]], qs[:, None])[:, 0] < 0, d, -d)
-            out[r, p] = -da  # >= best where da <= -best: J is not needed there
-            need = -da <= best[r]
-            r2, p2, q2 = r[need], p[need], qs[need]
-            if r2.size:
-                d, _ = slabs.query(q2, J[rows[r2]])
-                db = np.where(_beta(PJ[rows[r2]], q2[:, None])[:, 0] < 0, d, -d) * np.where(outside[rows[r2]], -1.0, 1.0)
-                out[r2, p2] = -np.minimum(da[need], db)
-        return out
-
-    g = _CENTER_GRID
-    t = (np.arange(g) + 0.5) / g
-    tx, ty = np.meshgrid(t, t, indexing="ij")
-    pts = lo[:, None, :] + (hi - lo)[:, None, :] * np.stack((tx.ravel(), ty.ravel()), axis=1)[None]
-    rows = np.arange(E)
-    # exact values at the few points with the best bounds give a value to beat; the bounded
-    # objective then skips every point whose bound is strictly worse (same argmin)
-    if _PRUNE:
-        top = np.argpartition(bound(rows, pts), 7, axis=1)[:, :8]
-        some = objective(rows, np.take_along_axis(pts, top[:, :, None], axis=1))
-        v = objective(rows, pts, some.min(axis=1))
-    else:
-        v = objective(rows, pts)
-    k = np.argmin(v, axis=1)
-    start, f0 = pts[rows, k], v[rows, k]
-    w = (hi - lo) / g
-    c, f = _pattern_min(objective, start, w, f0, m=_CENTER_M, shrink=0.5, tol=tol, max_rounds=80, bounded=_PRUNE)
-    for rot in _CENTER_ROTATIONS:  # the max-min has ridges; re-poll along rotated directions
-        c, f = _pattern_min(objective, c, 0.1 * w, f, m=_CENTER_M, shrink=0.5, tol=tol, max_rounds=60, rotation=rot,
-                            bounded=_PRUNE)
+    for k, e in enumerate(inner):
+        lo = np.maximum(vI[e].min(0), vJ[k].min(0))
+        hi = np.maximum(np.minimum(vI[e].max(0), vJ[k].max(0)), lo)
+        ki, kj = near(vI[e], lo, hi), near(vJ[k], lo, hi)
+        owner.append(e)
+        A.append(np.concatenate((aI[e][ki], aJ[k][kj])))
+        B.append(np.concatenate((bI[e][ki], bJ[k][kj])))
+        LO.append(lo)
+        HI.append(hi)
+        L.append(min(PI[e, HW], PI[e, HH], PJ[inner[k], HW], PJ[inner[k], HH]))
+    t0 = 0
+    for r, e in enumerate(ws):
+        o = out_w[r] | np.roll(out_w[r], 1) | np.roll(out_w[r], -1)
+        v = vI[e][o] if o.any() else vI[e]
+        lo, hi = v.min(0), v.max(0)
+        ki = near(vI[e], lo, hi)
+        for t in range(t0, t0 + len(picks[r])):
+            owner.append(e)
+            A.append(np.concatenate((aI[e][ki], -normal[t][None])))
+            B.append(np.concatenate((bI[e][ki], [-h[t]])))
+            LO.append(lo)
+            HI.append(hi)
+            L.append(min(PI[e, HW], PI[e, HH]))
+        t0 += len(picks[r])
+    # pad to a common width with void half-planes (a = 0, b = 1e200: zero soft-min weight), so a
+    # row's result does not depend on its batch (the memo relies on that)
+    width = max(len(b) for b in B)
+    A = np.stack([np.concatenate((a, np.zeros((width - len(a), 2)))) for a in A])
+    B = np.stack([np.concatenate((b, np.full(width - len(b), 1e200))) for b in B])
+    owner = np.asarray(owner)
+    c, t = _max_min_slack(A, B, np.array(LO), np.array(HI), np.array(L))
+    order = np.lexsort((-t, owner))  # per owner, the largest t first
+    first = order[np.concatenate(([True], owner[order][1:] != owner[order][:-1]))]
+    c = c[first][np.argsort(owner[first])]
     depth = np.minimum(-_signed_distance(bodies, I, c), sgn * _signed_distance(bodies, J, c))
-    # Thin intersections: sample distances are too coarse below a few sample spacings; refine
-    # those (few) with exact distances.
+    # Thin intersections: the polygons lose up to their sagitta; refine on exact distances.
     thin = np.nonzero(depth < _THIN)[0]
     if thin.size:
         c[thin], depth[thin] = _thin_centers(bodies, I[thin], J[thin], sgn[thin], c[thin], depth[thin])
@@ -721,7 +719,7 @@ def _thin_centers(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, sgn: np
     c0 = np.where(use[:, None], start, c)
     f0 = np.where(use, fs, -depth)
     w = np.maximum(0.5 * np.maximum(span, -f0), 1e-6)[:, None].repeat(2, axis=1)
-    for rot in (0.0, *_CENTER_ROTATIONS):
+    for rot in (0.0, *_THIN_ROTATIONS):
         c0, f0 = _pattern_min(objective, c0, w, f0, m=5, shrink=0.5, tol=1e-3 * float(w.min()) + 1e-9,
                               max_rounds=40, rotation=rot)
         w = 0.1 * w
@@ -760,7 +758,7 @@ def common_center(a: Squircle, b: Squircle, *, outside_b: bool = False) -> tuple
     True
     """
     A = _Body(a, _SAMPLES)
-    B = _Body(b, _WS_SAMPLES, n_dense=4096) if outside_b else _Body(b, _SAMPLES)
+    B = _Body(b, _WS_SAMPLES if outside_b else _SAMPLES)
     c, d = _common_centers([A, B], np.array([0]), np.array([1]), np.array([bool(outside_b)]))
     return c[0], float(d[0])
 
@@ -846,13 +844,10 @@ def _centers(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, outside: np.
 
 
 def _root_depth(body: _Body) -> float:
-    """Depth of a squircle's own centre inside it (exact distance to its boundary)."""
-    key = ("r", body.sq)
-    d = _PAIRS.get(key)
-    if d is None:
-        d = float(-_signed_distance([body], np.array([0]), np.array([body.sq.center]))[0])
-        _PAIRS.put(key, d)
-    return d
+    """Depth of a squircle's own centre inside it: ``min(width, height) / 2`` exactly (the
+    unit squircle's ray length is >= 1, equal to 1 along the axes, so the shortest ray from the
+    centre, which is the distance to the boundary, is the shorter half-extent)."""
+    return body.sq.inscribed_radius
 
 
 # ---------------------------------------------------------------------- construction
@@ -915,7 +910,7 @@ def build_forest(workspace: Squircle, obstacles: Sequence[Squircle], *, min_gap:
     n = len(obstacles)
     bodies = [_body(o, _SAMPLES) for o in obstacles]
     W = n  # body index of the workspace
-    bodies.append(_body(workspace, _WS_SAMPLES, n_dense=4096))
+    bodies.append(_body(workspace, _WS_SAMPLES))
 
     # --- relation of every obstacle to the workspace boundary
     dropped: dict[int, str] = {}

@@ -492,25 +492,70 @@ class ExactDistance:
             los.append(np.where(k > 0, psi[np.arange(len(k)), k - 1], psi[:, -1] - 2.0 * math.pi))
             his.append(np.where(k < n - 1, psi[np.arange(len(k)), (k + 1) % n], psi[:, 0] + 2.0 * math.pi))
         pair = np.concatenate(pair)
-        lo, hi = np.concatenate(los), np.concatenate(his)
-        P = self.P[j[pair]]
-        qx, qy = q[pair, 0, None], q[pair, 1, None]
-        grid = np.linspace(0.0, 1.0, self.m + 1)[None, :]
-        rows = np.arange(len(pair))
-        best = np.full(len(pair), np.inf)
-        for _ in range(self.stages):
-            psi = lo[:, None] + (hi - lo)[:, None] * grid
-            bx, by = _point_xy_rows(P, psi)
-            d2 = (bx - qx) ** 2 + (by - qy) ** 2
-            k = np.argmin(d2, axis=1)
-            best = np.minimum(best, d2[rows, k])
-            step = (hi - lo) / self.m
-            centre = psi[rows, k]
-            lo, hi = centre - step, centre + step
+        best = _refine_brackets(self.P[j[pair]], q[pair], np.concatenate(los), np.concatenate(his), self.stages,
+                                self.m)
         dist = np.full(len(q), np.inf)
         np.minimum.at(dist, pair, np.sqrt(best))
         inside = beta_rows(self.P[j], q[:, 0], q[:, 1]) < 0.0
         return np.where(inside, -dist, dist)
+
+
+def _refine_brackets(P: np.ndarray, q: np.ndarray, lo: np.ndarray, hi: np.ndarray, stages: int, m: int) -> np.ndarray:
+    """Smallest squared distance from ``q (K, 2)`` to the boundary arcs ``psi in [lo, hi]`` of rows
+    ``P (K, 7)``, each arc bracketing one local minimum: ``stages`` rounds of ``m + 1`` samples,
+    each shrinking the bracket to two sample steps around the best sample."""
+    qx, qy = q[:, 0, None], q[:, 1, None]
+    grid = np.linspace(0.0, 1.0, m + 1)[None, :]
+    rows = np.arange(len(q))
+    best = np.full(len(q), np.inf)
+    for _ in range(stages):
+        psi = lo[:, None] + (hi - lo)[:, None] * grid
+        bx, by = _point_xy_rows(P, psi)
+        d2 = (bx - qx) ** 2 + (by - qy) ** 2
+        k = np.argmin(d2, axis=1)
+        best = np.minimum(best, d2[rows, k])
+        step = (hi - lo) / m
+        centre = psi[rows, k]
+        lo, hi = centre - step, centre + step
+    return best
+
+
+def signed_distance_rows(P: np.ndarray, q: np.ndarray, n: int = 128, stages: int = 11, m: int = 16) -> np.ndarray:
+    """Signed distances (negative inside) of the points ``q (K, 2)`` to the squircles of the rows
+    ``P (K, 7)``, one squircle per point, without precomputed tables.
+
+    The method of :class:`ExactDistance` on ``n`` boundary samples at evenly spaced angles,
+    computed on the fly: the arc between samples ``k`` and ``k + 1`` is at most its chord over
+    ``cos(alpha)``, ``alpha`` the angle between the neighbouring chords (which bounds the
+    turning of a convex curve over the arc), so every discrete local minimum within half the
+    longest arc of the smallest sampled distance is a candidate; each is refined over its
+    bracket (:func:`_refine_brackets`). Arcs turning by more than 84 degrees make every discrete
+    local minimum a candidate. The error is below 1e-9 m (tested against a dense brute force).
+    """
+    q = np.asarray(q, dtype=float).reshape(-1, 2)
+    P = np.asarray(P, dtype=float).reshape(-1, 7)
+    if len(q) == 0:
+        return np.empty(0)
+    psi = np.linspace(0.0, 2.0 * math.pi, n, endpoint=False)
+    bx, by = _point_xy_rows(P, np.broadcast_to(psi, (len(P), n)))
+    ex, ey = np.roll(bx, -1, axis=1) - bx, np.roll(by, -1, axis=1) - by  # chord k -> k + 1
+    chord = np.hypot(ex, ey)
+    # cos of the angle between chords k - 1 and k + 1
+    cos = (np.roll(ex, 1, axis=1) * np.roll(ex, -1, axis=1) + np.roll(ey, 1, axis=1) * np.roll(ey, -1, axis=1)) / \
+        np.maximum(np.roll(chord, 1, axis=1) * np.roll(chord, -1, axis=1), 1e-300)
+    arc = np.where(cos > 0.1, chord / np.maximum(cos, 0.1), np.inf)
+    half = 0.5 * arc.max(axis=1)
+    d2 = (bx - q[:, 0, None]) ** 2 + (by - q[:, 1, None]) ** 2
+    local = (d2 <= np.roll(d2, 1, axis=1)) & (d2 <= np.roll(d2, -1, axis=1))
+    local &= d2 <= (np.sqrt(d2.min(axis=1)) + half)[:, None] ** 2
+    r, k = np.nonzero(local)
+    lo = np.where(k > 0, psi[k - 1], psi[-1] - 2.0 * math.pi)
+    hi = np.where(k < n - 1, psi[(k + 1) % n], psi[0] + 2.0 * math.pi)
+    best = _refine_brackets(P[r], q[r], lo, hi, stages, m)
+    dist = np.full(len(q), np.inf)
+    np.minimum.at(dist, r, np.sqrt(best))
+    inside = beta_rows(P, q[:, 0], q[:, 1]) < 0.0
+    return np.where(inside, -dist, dist)
 
 
 @functools.lru_cache(maxsize=4096)

@@ -22,8 +22,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from navigation.errors import ForestError, WorldError
-from navigation.forest import _SAMPLES, _Body, _pair_distance
+from navigation.forest import _SAMPLES, _pair_distance
+from navigation.forest import _Body as _ForestBody
 from navigation.geometry import Squircle
+from scipy.spatial import cKDTree
 from navigation.world import LidarSpec, Region, RobotSpec, World
 
 __all__ = ["random_forest_world", "random_free_points", "GAP", "MIN_OVERLAP", "MIN_PROTRUSION"]
@@ -56,6 +58,26 @@ def _random_shape(rng: np.random.Generator, center, wall_only: bool = False, lon
     w = float(rng.uniform(0.25, 0.6))
     h = w if rng.random() < 0.5 else float(rng.uniform(0.2, 0.6))
     return Squircle(tuple(center), w, h, theta, 0.0 if rng.random() < 0.6 else float(rng.uniform(0.0, 0.6)))
+
+
+class _Body(_ForestBody):
+    """The forest's boundary samples plus what the generator's checks query: a k-d tree of the
+    samples, their bounding box and (on first use) a k-d tree of ``n_dense`` samples."""
+
+    __slots__ = ("tree", "lo", "hi", "n_dense", "_dense_tree")
+
+    def __init__(self, sq: Squircle, n: int, n_dense: int = 1024):
+        super().__init__(sq, n)
+        self.tree = cKDTree(self.pts)
+        self.lo = self.pts.min(axis=0)
+        self.hi = self.pts.max(axis=0)
+        self.n_dense = n_dense
+        self._dense_tree = None
+
+    def dense_tree(self) -> cKDTree:
+        if self._dense_tree is None:
+            self._dense_tree = cKDTree(self.sq.boundary_points(self.n_dense))
+        return self._dense_tree
 
 
 @dataclass
