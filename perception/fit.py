@@ -49,6 +49,7 @@ from typing import NamedTuple
 import cv2
 import numpy as np
 from scipy.optimize import least_squares
+from scipy.spatial import cKDTree
 
 from navigation.geometry import Squircle
 
@@ -282,7 +283,25 @@ def _seeds(points: np.ndarray, views: np.ndarray | None, cfg: PerceptionConfig) 
     return seeds
 
 
-def _solve(seed: np.ndarray, q: np.ndarray, free: np.ndarray, cfg: PerceptionConfig):
+def _warm_seed(init, q: np.ndarray, cfg: PerceptionConfig) -> np.ndarray | None:
+    """Parameters of the squircle of ``init`` that fits ``q`` best (smallest median absolute
+    radial error of up to 32 points), when it lies within ``min_unseen`` of them; else None."""
+    if not init:
+        return None
+    qq = _subsample(q, 32)
+    best = None
+    for sq in init:
+        if math.dist(sq.center, qq.mean(axis=0)) > sq.bounding_radius + cfg.min_unseen:
+            continue
+        e = float(np.median(np.abs(radial_error(sq, qq))))
+        if e <= cfg.min_unseen and (best is None or e < best[0]):
+            best = (e, sq)
+    return None if best is None else _params(best[1])
+
+
+def _solve(seed: np.ndarray, q: np.ndarray, free: np.ndarray, cfg: PerceptionConfig, ref_seed=None):
+    """Least squares from ``seed``; extents beyond those of ``ref_seed`` (default ``seed``) are
+    penalised."""
     lo = np.array([-np.inf, -np.inf, math.log(cfg.min_extent / 2), math.log(cfg.min_extent / 2), -np.inf, 0.0])
     hi = np.array([np.inf, np.inf, math.log(cfg.max_extent / 2), math.log(cfg.max_extent / 2), np.inf, _S_MAX])
     x0 = np.clip(seed, lo + 1e-9, hi - 1e-9)
@@ -290,7 +309,8 @@ def _solve(seed: np.ndarray, q: np.ndarray, free: np.ndarray, cfg: PerceptionCon
     try:
         # extents beyond the seed's (the rectangle of the points, with the unseen minimum) are
         # penalised: the data does not constrain the unseen side, the estimate stays small there
-        ref = (math.exp(x0[2]), math.exp(x0[3]), 0.1 * math.sqrt(len(q)))
+        r0 = x0 if ref_seed is None else np.clip(ref_seed, lo + 1e-9, hi - 1e-9)
+        ref = (math.exp(r0[2]), math.exp(r0[3]), 0.1 * math.sqrt(len(q)))
         res = least_squares(_residuals, x0, jac=_residuals_jac, bounds=(lo, hi), args=(q, free, 1.0, ref),
                             x_scale=scale, method="trf", max_nfev=20, xtol=1e-6, ftol=1e-6)
     except (ValueError, np.linalg.LinAlgError):
@@ -376,7 +396,7 @@ def _to_squircle(p: np.ndarray) -> Squircle:
                     float(min(max(p[5], 0.0), _S_MAX)))
 
 
-def fit_squircle(points, *, views=None, free=None, config: PerceptionConfig | None = None) -> Fit:
+def fit_squircle(points, *, views=None, free=None, config: PerceptionConfig | None = None, init=None) -> Fit:
     """Fit one squircle to a cluster (module docstring), conservatively completed.
 
     Parameters
@@ -388,6 +408,11 @@ def fit_squircle(points, *, views=None, free=None, config: PerceptionConfig | No
     free : array_like, shape (F, 2), optional
         Points known to be free (the beams passed there); penalised inside the estimate.
     config : PerceptionConfig, optional
+    init : iterable of Squircle, optional
+        Previous estimates of this obstacle (warm start): the one closest to the points seeds
+        the first least-squares solve; the OpenCV seeds are solved only when that fit does not
+        explain the points (RMS within ``split_tol``, 95th percentile within ``3 split_tol``,
+        free-space penalty within ``free_tol^2``).
 
     Returns
     -------
@@ -419,19 +444,28 @@ def fit_squircle(points, *, views=None, free=None, config: PerceptionConfig | No
         p = _contain(p, q, cfg.inside_tol)
         return Fit(_to_squircle(p), 0.0, False, np.arange(len(q)))
     best = None
-    for seed in _seeds(qs, vs, cfg):
+    seeds = _seeds(qs, vs, cfg)
+    warm = _warm_seed(init, qs, cfg)
+    for k, seed in enumerate(([warm] if warm is not None else []) + seeds):
         if best is not None and best[1] <= 0.5 * cfg.split_tol and best[2] == 0.0:
-            break  # the rectangle seed already explains the points and the free space
-        out = _solve(seed, qs, fs, cfg)
+            break  # the warm or rectangle seed already explains the points and the free space
+        out = _solve(seed, qs, fs, cfg, ref_seed=seeds[0])
         if out is None:
             continue
         x, rms, pen, p95 = out
+        if (k == 0 and warm is not None and rms <= cfg.split_tol and p95 <= 3 * cfg.split_tol
+                and pen <= cfg.free_tol ** 2):
+            # the previous estimate, refined, still explains the points (the decomposition's
+            # criterion) and keeps the free space free (within about one free cell ``free_tol``
+            # deep): the same basin as before, no new seeds
+            best = (x, rms, pen, 0.0, p95)
+            break
         cost = rms * rms * len(qs) + pen
         # fits of comparable point error: the one keeping free space truthful wins
         if best is None or cost < best[3] * 0.999:
             best = (x, rms, pen, cost, p95)
     if best is None:
-        x, rms, p95 = _seeds(qs, vs, cfg)[0], 1.0, 1.0
+        x, rms, p95 = seeds[0], 1.0, 1.0
     else:
         x, rms, p95 = best[0], best[1], best[4]
     x, closed = _complete(x, qs, vs, cfg)
@@ -671,7 +705,8 @@ def _overlap(a: Squircle, b: Squircle, grow: float) -> bool:
     return bool(np.any(gauge(B, A.boundary_points(64)) <= 1.0) or np.any(gauge(A, B.boundary_points(64)) <= 1.0))
 
 
-def _break_cycles(q, vw, free, fits: list[Fit], cfg: PerceptionConfig, grow: float) -> list[Fit]:
+def _break_cycles(q, vw, free, fits: list[Fit], cfg: PerceptionConfig, grow: float, init=None,
+                  cache=None) -> list[Fit]:
     """Merge pieces until the pieces grown by ``grow`` (the robot radius) overlap as a tree:
     in the smallest cycle, the two overlapping pieces whose union one rectangle explains best
     become one piece, refitted to their points."""
@@ -717,7 +752,7 @@ def _break_cycles(q, vw, free, fits: list[Fit], cfg: PerceptionConfig, grow: flo
                     if best is None or c < best[0]:
                         best = (c, a, b, idx)
         _, a, b, idx = best
-        f = _fit_piece(q, vw, fr, idx, cfg)
+        f = _fit_piece(q, vw, fr, idx, cfg, init, cache)
         fits[a] = Fit(f.squircle, f.rms, f.closed, idx, f.p95)
         del fits[b]
     return fits
@@ -742,24 +777,58 @@ def _runs(q: np.ndarray, cfg: PerceptionConfig, fr, depth: int) -> list[np.ndarr
     return parts
 
 
-def _fit_piece(q, vw, free, idx, cfg: PerceptionConfig) -> Fit:
-    """:func:`fit_squircle` of the points ``idx`` of a cluster, with the free points near them."""
+def _cell_key(points: np.ndarray, cfg: PerceptionConfig) -> tuple:
+    """Key of a point set by the ``voxel`` cells of its points (stable while averaged returns
+    move within their cells)."""
+    cells = np.unique(np.floor(points / cfg.voxel).astype(np.int64), axis=0)
+    return len(points), hash(cells.tobytes())
+
+
+def _reusable(f: Fit, q: np.ndarray, free, cfg: PerceptionConfig) -> bool:
+    """``f`` (a previous fit of the same cells) still holds: every point within ``inside_tol``
+    of its inside, no free point deeper than ``free_tol`` inside it."""
+    if float(radial_error(f.squircle, q).max()) > cfg.inside_tol:
+        return False
+    return free is None or not len(free) or float(radial_error(f.squircle, free).min()) >= -cfg.free_tol
+
+
+def _fit_piece(q, vw, free, idx, cfg: PerceptionConfig, init=None, cache=None) -> Fit:
+    """:func:`fit_squircle` of the points ``idx`` of a cluster, with the free points near them
+    (warm-started from ``init``). With ``cache`` (a dict kept by the caller between refits of
+    one cluster) a piece of the same cells as before whose previous fit still holds
+    (:func:`_reusable`) keeps it (same squircle object, no least squares)."""
     fr = None
     if free is not None and len(free):
         lo, hi = q[idx].min(axis=0) - 0.3, q[idx].max(axis=0) + 0.3
         fr = free[np.all((free >= lo) & (free <= hi), axis=1)]
-    f = fit_squircle(q[idx], views=None if vw is None else vw[idx], free=fr, config=cfg)
-    return Fit(f.squircle, f.rms, f.closed, idx, f.p95)
+    key = None
+    if cache is not None:
+        key = _cell_key(q[idx], cfg)
+        prev = cache.get(key)
+        if prev is not None and _reusable(prev, q[idx], fr, cfg):
+            return Fit(prev.squircle, prev.rms, prev.closed, idx, prev.p95)
+    f = fit_squircle(q[idx], views=None if vw is None else vw[idx], free=fr, config=cfg, init=init)
+    f = Fit(f.squircle, f.rms, f.closed, idx, f.p95)
+    if key is not None:
+        cache[key] = f
+    return f
 
 
 def fit_cluster(points, *, views=None, free=None, config: PerceptionConfig | None = None,
-                max_pieces: int = 16, split: bool = True, grow: float = 0.0) -> list[Fit]:
+                max_pieces: int = 16, split: bool = True, grow: float = 0.0, init=None,
+                cache: dict | None = None) -> list[Fit]:
     """Fit a cluster with one squircle, or decompose it into overlapping pieces (section 4.2.1).
 
     Parameters are those of :func:`fit_squircle`; ``max_pieces`` bounds the decomposition
     (depth ``log2(max_pieces)``), ``split=False`` forces a single squircle. With ``grow > 0``
     (the robot radius) pieces are merged until, grown by ``grow``, they overlap as a tree
-    (no cycle), which the forest of stars needs.
+    (no cycle), which the forest of stars needs. ``init`` (the cluster's previous estimates)
+    warm-starts every least-squares fit (:func:`fit_squircle`). ``cache`` (a dict the caller
+    keeps per cluster, empty at first) lets pieces whose cells did not change, and whose fit still
+    holds their points and the free space, keep their previous fit; it also remembers whether
+    the whole cluster was explained by one squircle, so that a cluster that was decomposed
+    (RMS of the single squircle above ``2 split_tol``) and has grown by less than half since is
+    decomposed again without first fitting it whole.
 
     Returns
     -------
@@ -770,43 +839,69 @@ def fit_cluster(points, *, views=None, free=None, config: PerceptionConfig | Non
     cfg = config or PerceptionConfig.from_lidar()
     q = _check(points, "points")
     vw = None if views is None else _check(views, "views")
-    one = fit_squircle(q, views=vw, free=free, config=cfg)
-    swallowed = 0
-    if free is not None and len(free):
-        fr0 = _check(free, "free")
-        swallowed = int(np.count_nonzero(radial_error(one.squircle, fr0) < -cfg.free_cell))
-    if (not split or (one.rms <= cfg.split_tol and one.p95 <= 3 * cfg.split_tol and swallowed < 3)
-            or len(q) < 2 * cfg.min_piece):
-        return [one]
+    init = None if init is None else list(init)
+    cache = {} if cache is None else cache
+    one_memo = cache.get("one")
+    one = None
+    if split and one_memo is not None and one_memo[1] > 2 * cfg.split_tol and len(q) < 1.5 * one_memo[0]:
+        pass  # decomposed before and not yet grown much: decompose again (``one`` only if needed)
+    else:
+        one = _fit_one(q, vw, free, cfg, init, cache, split)
+        if one is not None:
+            return [one]
     depth = max(int(math.log2(max(max_pieces, 1))), 0)
     fr = None if free is None else _check(free, "free")
     parts = _runs(q, cfg, fr, depth)
     fits = []
     for idx in parts:
-        f = _fit_piece(q, vw, fr, idx, cfg)
+        f = _fit_piece(q, vw, fr, idx, cfg, init, cache)
         if (len(idx) >= 2 * cfg.min_piece and (f.rms > cfg.split_tol or f.p95 > 3 * cfg.split_tol)
                 and len(fits) + len(parts) < max_pieces):
             # not one squircle yet (walls meeting at right angles): recursive cuts
             sub = _split(q, idx, cfg.split_tol, cfg.min_piece, depth, force=True, free=fr, margin=cfg.free_cell)
             sub = _merge_parts(q, sub, cfg, fr)
             if len(sub) > 1:
-                fits.extend(_fit_piece(q, vw, fr, j, cfg) for j in sub)
+                fits.extend(_fit_piece(q, vw, fr, j, cfg, init, cache) for j in sub)
                 continue
         fits.append(f)
     if len(fits) <= 1:
+        if one is None:
+            one = _fit_one(q, vw, free, cfg, init, cache, False)
         return [one]
     if grow > 0:
-        fits = _break_cycles(q, vw, free, fits, cfg, grow)
+        fits = _break_cycles(q, vw, free, fits, cfg, grow, init, cache)
+    # keep only the pieces of this decomposition (bounded memory)
+    keep = {_cell_key(q[f.indices], cfg) for f in fits}
+    for k in [k for k in cache if k != "one" and k not in keep]:
+        del cache[k]
     return fits
+
+
+def _fit_one(q, vw, free, cfg: PerceptionConfig, init, cache: dict, split: bool) -> Fit | None:
+    """The single-squircle fit of a whole cluster (warm-started only from a single previous
+    estimate, not from a piece), recorded in ``cache["one"]``; returned when it explains the
+    cluster (or ``split`` is False), else None."""
+    one = fit_squircle(q, views=vw, free=free, config=cfg, init=init if init and len(init) == 1 else None)
+    cache["one"] = (len(q), one.rms, one)
+    swallowed = 0
+    if free is not None and len(free):
+        fr0 = _check(free, "free")
+        swallowed = int(np.count_nonzero(radial_error(one.squircle, fr0) < -cfg.free_cell))
+    if (not split or (one.rms <= cfg.split_tol and one.p95 <= 3 * cfg.split_tol and swallowed < 3)
+            or len(q) < 2 * cfg.min_piece):
+        return one
+    return None
 
 
 def inflate(sq: Squircle, r: float, samples: int = 96) -> Squircle:
     """A squircle containing ``sq`` grown by ``r >= 0`` (same centre, rotation and ``s``).
 
-    Extents grow by ``2 k r``; ``k >= 1`` increases by 3 % until ``samples`` boundary points of
-    the candidate are at least ``r`` from ``sq`` (distances to ``4 samples`` boundary points
-    of ``sq``, minus half their spacing, a lower bound of the true distance). A fast variant of
-    :meth:`navigation.Squircle.grow` for per-scan use.
+    Extents grow by ``2 k r`` with ``k = 1.03^n``, ``n`` the smallest of ``0 .. 79`` for which
+    ``samples`` boundary points of the candidate are at least ``r`` from ``sq`` (distances to
+    ``4 samples`` boundary points of ``sq``, minus half their spacing, a lower bound of the true
+    distance). Candidates are nested (larger ``k``, larger squircle), so ``n`` is found by
+    bisection (7 tests instead of up to 80). A fast variant of :meth:`navigation.Squircle.grow`
+    for per-scan use.
     """
     r = float(r)
     if not math.isfinite(r) or r < 0:
@@ -815,13 +910,25 @@ def inflate(sq: Squircle, r: float, samples: int = 96) -> Squircle:
         return sq
     ref = sq.boundary_points(4 * samples)
     spacing = float(np.max(np.linalg.norm(ref - np.roll(ref, 1, axis=0), axis=1)))
-    k = 1.0
-    for _ in range(80):
-        ext = 2 * k * r + 2e-9
-        cand = Squircle(sq.center, sq.width + ext, sq.height + ext, sq.theta, sq.s)
-        b = cand.boundary_points(samples)
-        d = np.sqrt(((b[:, None, :] - ref[None, :, :]) ** 2).sum(-1).min(axis=1))
-        if float(d.min()) - spacing / 2 >= r:
-            return cand
-        k *= 1.03
-    return cand  # pragma: no cover
+    tree = cKDTree(ref)
+
+    def cand(n: int) -> Squircle:
+        ext = 2 * 1.03 ** n * r + 2e-9
+        return Squircle(sq.center, sq.width + ext, sq.height + ext, sq.theta, sq.s)
+
+    def clear(c: Squircle) -> bool:
+        d, _ = tree.query(c.boundary_points(samples))
+        return float(d.min()) - spacing / 2 >= r
+
+    lo, hi = -1, 79  # clear(cand(hi)) is assumed (k = 1.03^79 ~ 10: far enough), lo is not clear
+    c0 = cand(0)
+    if clear(c0):
+        return c0
+    lo = 0
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if clear(cand(mid)):
+            hi = mid
+        else:
+            lo = mid
+    return cand(hi)

@@ -157,6 +157,7 @@ class _Cluster:
     failed_at: int = 0  # cells when its last update had to be reverted (retry after growth)
     last_fit: int = -10**9  # scan count at its last refit
     pending: bool = False  # contradicted by data while not due: refit when due
+    cache: dict = field(default_factory=dict)  # fit_cluster's memo of its pieces (refit cost)
 
 
 class ObstacleMap:
@@ -551,6 +552,7 @@ class ObstacleMap:
             if cl is not None:
                 self._clusters[keep].ids.extend(cl.ids)
                 self._clusters[keep].single |= cl.single
+                self._clusters[keep].cache.pop("one", None)  # a new cluster as a whole
 
     def _associate(self, lab: int) -> int | None:
         """Cluster of the estimate that contains most returns of the new cluster ``lab``
@@ -640,7 +642,8 @@ class ObstacleMap:
         if not len(q):
             return
         old = [i for i in cl.ids if i in proposed]
-        fits = fit_cluster(q, views=v, free=free, config=self.config, split=not cl.single, grow=1.05 * self.radius)
+        fits = fit_cluster(q, views=v, free=free, config=self.config, split=not cl.single, grow=1.05 * self.radius,
+                           init=[proposed[i].squircle for i in old], cache=cl.cache)
         new_ids = []
         for k, f in enumerate(fits):
             sq = f.squircle
