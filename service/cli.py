@@ -230,9 +230,10 @@ def _cmd_demo(a) -> int:
         fld = np.asarray(tel.field_times) * 1e3
         out["telemetry"] = {"tick_p50_ms": float(np.percentile(viz, 50)) if len(viz) else None,
                             "tick_p95_ms": float(np.percentile(viz, 95)) if len(viz) else None,
-                            "field_refreshes": int(len(fld)),
+                            "field_calls": int(len(fld)),
                             "field_mean_ms": float(fld.mean()) if len(fld) else None,
-                            "field_max_ms": float(fld.max()) if len(fld) else None}
+                            "field_max_ms": float(fld.max()) if len(fld) else None,
+                            "field_ms_per_tick": float(fld.sum() / len(viz)) if len(viz) else None}
     if a.json:
         print(json.dumps(out))
     else:
@@ -251,9 +252,11 @@ def _cmd_demo(a) -> int:
               + (f"\n  recording      {out['record']}" if out["record"] else "")
               + (f"\n  rerun logging  p50 {f(out['telemetry']['tick_p50_ms'], '.2f')} ms, "
                  f"p95 {f(out['telemetry']['tick_p95_ms'], '.2f')} ms per tick; "
-                 f"{out['telemetry']['field_refreshes']} navigation-function refreshes, "
-                 f"mean {f(out['telemetry']['field_mean_ms'], '.1f')} ms, "
-                 f"max {f(out['telemetry']['field_max_ms'], '.1f')} ms" if "telemetry" in out else ""))
+                 f"navigation function and field: {out['telemetry']['field_calls']} calls "
+                 f"(arrows, heat-map chunks), mean {f(out['telemetry']['field_mean_ms'], '.1f')} ms, "
+                 f"max {f(out['telemetry']['field_max_ms'], '.1f')} ms, "
+                 f"{f(out['telemetry']['field_ms_per_tick'], '.2f')} ms per tick"
+                 if "telemetry" in out else ""))
     return 0
 
 

@@ -36,9 +36,10 @@ waypoint the executive tracks, never built for the purpose; ``None`` when there 
 are refreshed at most every ``field_period`` seconds of robot time (default 2 s): the arrows at
 each refresh (they follow the robot), the heat map only when the field changed since the last
 one (a new waypoint or a new forest after a map change). The evaluation is vectorised
-(``nf.evaluate(G, 0)`` on about ``heat_points`` grid points, ``field.field`` on at most
-``arrow_grid**2``); it runs on the control thread after the command is published, at about
-3-7 ms per refresh (``Telemetry.times`` / ``Telemetry.field_times`` keep the cost).
+(``field.field`` on at most ``arrow_grid**2`` points; ``nf.evaluate(G, 0)`` on about
+``heat_points`` grid points, ``heat_chunk`` of them per tick on the following ticks, so that
+no tick carries the whole heat map). It runs on the control thread after the command is
+published (``Telemetry.times`` / ``Telemetry.field_times`` keep the cost).
 """
 
 from __future__ import annotations
@@ -92,19 +93,23 @@ class Telemetry:
     """Rerun output of the service; inert when it has no sink. Use :meth:`from_options`.
 
     ``field_period`` (robot seconds between heat-map / arrow refreshes), ``heat_points`` (grid
-    points of the heat map over the workspace), ``arrow_grid`` (arrows per side of the box
-    around the robot and its waypoint) set the cost of the navigation-function views.
-    ``times`` and ``field_times`` hold the wall seconds of the last calls of :meth:`log_tick`
-    and of its navigation-function refreshes."""
+    points of the heat map over the workspace), ``heat_chunk`` (heat-map points evaluated per
+    tick), ``arrow_grid`` (arrows along the long side of the box around the robot and its
+    waypoint) set the cost of the navigation-function views. ``times`` and ``field_times`` hold
+    the wall seconds of the last calls of :meth:`log_tick` and of its navigation-function work
+    (arrow refreshes and heat-map chunks)."""
 
-    def __init__(self, rec=None, *, field_period: float = 2.0, heat_points: int = 2000, arrow_grid: int = 12):
+    def __init__(self, rec=None, *, field_period: float = 2.0, heat_points: int = 2000, heat_chunk: int = 500,
+                 arrow_grid: int = 12):
         self._rec = rec
         self.field_period = float(field_period)
         self.heat_points = int(heat_points)
+        self.heat_chunk = max(int(heat_chunk), 1)
         self.arrow_grid = int(arrow_grid)
         self.times: deque = deque(maxlen=100000)
         self.field_times: deque = deque(maxlen=10000)
         self._field = None          # the field of the last heat map
+        self._heat_job = None       # a heat map being evaluated, ``heat_chunk`` points per tick
         self._field_t = -math.inf   # robot time of the last refresh
         self._heat_grid = None      # (points, step) over the workspace
         self._regions = None        # regions last logged
@@ -290,15 +295,41 @@ class Telemetry:
         if regions_fn is not None:
             self._log_regions(regions_fn())
         field_fn = getattr(node.brain, "field", None)
-        if field_fn is not None and pose is not None and float(pose.stamp) - self._field_t >= self.field_period:
-            try:
+        if field_fn is None or pose is None:
+            return
+        try:
+            if self._heat_job is not None:  # one chunk of a pending heat map per tick
+                self._heat_step()
+            elif float(pose.stamp) - self._field_t >= self.field_period:
                 self._log_field(node, field_fn(), pose)
-            except Exception as err:  # visualisation must never take the service down
-                log.debug("navigation function not logged: %s", err)
+        except Exception as err:  # visualisation must never take the service down
+            self._heat_job = None
+            log.debug("navigation function not logged: %s", err)
+
+    def _heat_step(self) -> None:
+        """Evaluate the next ``heat_chunk`` grid points of the pending heat map; log it when
+        complete (spreads the evaluation over a few ticks)."""
+        import rerun as rr
+
+        t0 = time.perf_counter()
+        job = self._heat_job
+        nf, k = job["field"].nf, job["k"]
+        grid, step = self._heat_grid
+        end = min(k + self.heat_chunk, len(grid))
+        ev = nf.evaluate(grid[k:end], 0)
+        job["value"][k:end], job["free"][k:end] = ev.value, ev.free
+        job["k"] = end
+        if end == len(grid):
+            self._heat_job = None
+            free = job["free"]
+            mu = float(nf.params.mu) or 1.0
+            self._rec.log("world/nf", rr.Points2D(grid[free], radii=[0.5 * step],
+                                                  colors=_colormap(job["value"][free] / mu), draw_order=-10.0))
+        self.field_times.append(time.perf_counter() - t0)
 
     def _log_field(self, node, fld, pose) -> None:
-        """Heat map of ``fld.nf`` (when ``fld`` is new) and arrows of ``fld`` around the robot
-        and the current waypoint (see the module docstring)."""
+        """Arrows of ``fld`` around the robot and the current waypoint; a heat map of
+        ``fld.nf`` queued when ``fld`` is new (see the module docstring)."""
         if fld is None:
             return
         import rerun as rr
@@ -313,12 +344,8 @@ class Telemetry:
                 ws = node.brain.world.workspace
                 pts = ws.boundary_points(_OUTLINE)
                 self._heat_grid = _grid(pts.min(axis=0), pts.max(axis=0), self.heat_points)
-            grid, step = self._heat_grid
-            ev = nf.evaluate(grid, 0)
-            free = ev.free
-            mu = float(nf.params.mu) or 1.0
-            rec.log("world/nf", rr.Points2D(grid[free], radii=[0.5 * step], colors=_colormap(ev.value[free] / mu),
-                                            draw_order=-10.0))
+            n = len(self._heat_grid[0])
+            self._heat_job = {"field": fld, "k": 0, "value": np.zeros(n), "free": np.zeros(n, bool)}
         robot = np.array([pose.x, pose.y])
         goal = np.asarray(fld.goal, float)
         lo = np.minimum(robot, goal) - 0.5
