@@ -340,6 +340,13 @@ def _signed_distance(bodies: Sequence[_Body], bid: np.ndarray, q: np.ndarray) ->
     return signed_distance_rows(np.stack([bodies[b].row for b in bid]) if len(bid) else np.zeros((0, 7)), q)
 
 
+def _sq_dists(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Squared distances ``(k, n, m)`` between the points ``a (k, n, 2)`` and ``b (k, m, 2)``."""
+    dx = a[:, :, None, 0] - b[:, None, :, 0]
+    dy = a[:, :, None, 1] - b[:, None, :, 1]
+    return dx * dx + dy * dy
+
+
 def _pair_distance(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, tol: float = 1e-12):
     """Minimum distance between the boundaries of bodies ``I[k]`` and ``J[k]``.
 
@@ -368,7 +375,7 @@ def _pair_distance(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, tol: f
         B = np.stack([bodies[j].pts for j in J[rows]])
         # coarse: every stride-th sample of both; profile along I of the nearest J sample
         a, b = A[:, ::stride], B[:, ::stride]
-        d2 = ((a[:, :, None, :] - b[:, None, :, :]) ** 2).sum(-1)  # (k, na/s, nb/s)
+        d2 = _sq_dists(a, b)  # (k, na/s, nb/s)
         kb_all = np.argmin(d2, axis=2)
         prof = np.sqrt(np.take_along_axis(d2, kb_all[:, :, None], axis=2)[:, :, 0])
         margin = stride * np.array([bodies[i].spacing + bodies[j].spacing for i, j in zip(I[rows], J[rows])])
@@ -379,21 +386,23 @@ def _pair_distance(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, tol: f
         # fine: all samples within `half` of each coarse candidate (wrapping around)
         ia = (ka[:, None] * stride + off[None, :]) % na
         ib = (kb[:, None] * stride + off[None, :]) % nb
-        a, b = A[rr[:, None], ia], B[rr[:, None], ib]
-        d2 = ((a[:, :, None, :] - b[:, None, :, :]) ** 2).sum(-1).reshape(len(rr), -1)
+        d2 = _sq_dists(A[rr[:, None], ia], B[rr[:, None], ib]).reshape(len(rr), -1)
         la, lb = np.divmod(np.argmin(d2, axis=1), len(off))
         e = np.arange(len(rr))
         fa, fb = ia[e, la], ib[e, lb]
-        for t in range(len(rr)):
-            i, j = I[rows[rr[t]]], J[rows[rr[t]]]
-            cand_c.append((bodies[i].psi[fa[t]], bodies[j].psi[fb[t]]))
-            cand_w.append((bodies[i].w0, bodies[j].w0))
+        psi_a = np.stack([bodies[i].psi for i in I[rows]])
+        psi_b = np.stack([bodies[j].psi for j in J[rows]])
+        w_a = np.array([bodies[i].w0 for i in I[rows]])
+        w_b = np.array([bodies[j].w0 for j in J[rows]])
+        cand_c.append(np.stack((psi_a[rr, fa], psi_b[rr, fb]), axis=1))
+        cand_w.append(np.stack((w_a[rr], w_b[rr]), axis=1))
         cand_row.append(rows[rr])
         cand_f.append(d2[e, la * len(off) + lb])
     row = np.concatenate(cand_row)
     PI = np.stack([bodies[i].row for i in I])
     PJ = np.stack([bodies[j].row for j in J])
-    c, f = _newton_pair(PI[row], PJ[row], np.array(cand_c), half * np.array(cand_w), np.concatenate(cand_f), tol=tol)
+    c, f = _newton_pair(PI[row], PJ[row], np.concatenate(cand_c), half * np.concatenate(cand_w), np.concatenate(cand_f),
+                        tol=tol)
     # the best candidate of every row
     order = np.lexsort((f, row))
     first = order[np.concatenate(([True], row[order][1:] != row[order][:-1]))]
@@ -528,7 +537,7 @@ def _soft_min(ax: np.ndarray, ay: np.ndarray, b: np.ndarray, q: np.ndarray, tau:
 
 
 def _max_min_slack(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarray, scale: np.ndarray, *,
-                   stages: int = 5, steps: int = 12, grid: int = 9) -> tuple[np.ndarray, np.ndarray]:
+                   stages: int = 4, steps: int = 10, grid: int = 9) -> tuple[np.ndarray, np.ndarray]:
     """Maximise ``t(q) = min_k (b_k - a_k . q)`` per row: the Chebyshev centre of the polygon of
     half-planes ``a (E, K, 2)`` (unit normals), ``b (E, K)``, i.e. a 3-variable linear program.
 
@@ -537,9 +546,10 @@ def _max_min_slack(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarray,
     ``t - tau log K <= t_tau <= t``), which is smooth with one maximiser. Newton steps on
     ``t_tau`` (exact gradient ``-sum_k w_k a_k`` and Hessian ``-Cov_w(a) / tau``), backtracked
     until ``t_tau`` does not decrease and limited to ``scale``, follow ``tau`` from
-    ``0.05 scale`` down by 8x per stage; a row leaves a stage when its Newton step is below
-    ``1e-6 scale``. Returns the points ``(E, 2)`` and their exact ``t`` (within about
-    ``1e-5 scale`` of the optimum; tested against HiGHS).
+    ``0.05 scale`` down by 8x per stage (``stages`` stages of at most ``steps`` steps); a row
+    leaves a stage when its Newton step is below ``1e-6 scale``. Returns the points ``(E, 2)``
+    and their exact ``t``, within about ``1e-4 scale`` of the optimum with the defaults (tested
+    against HiGHS): ample for a common centre, whose depth is then evaluated exactly.
     """
     E = len(a)
     ax, ay = np.ascontiguousarray(a[..., 0]), np.ascontiguousarray(a[..., 1])
@@ -623,6 +633,16 @@ def _common_centers(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, outsi
         x, dx, _ = boundary_jet_rows(np.broadcast_to(body.row, (len(psi), 7)), psi)
         normal = np.stack((dx[:, 1], -dx[:, 0]), axis=1) / np.linalg.norm(dx, axis=1, keepdims=True)
         h = (normal * x).sum(-1)
+        # along a (nearly) flat side the tangent lines nearly coincide: keep a line only where the
+        # normal turned by more than 0.05 rad since the last kept one (each line is a valid bound)
+        t0, lines = 0, []
+        for r in range(len(ws)):
+            kept = [t0]
+            for t in range(t0 + 1, t0 + len(picks[r])):
+                if float(normal[t] @ normal[kept[-1]]) < math.cos(0.05):
+                    kept.append(t)
+            lines.append(kept)
+            t0 += len(picks[r])
     # One LP per problem, with only the edges whose bounding box meets the box that contains the
     # intersection (the polygon O_I ∩ O_J is the intersection of the half-planes of its own edges,
     # pieces of such edges, so the others are redundant and the optimum is unchanged).
@@ -642,20 +662,18 @@ def _common_centers(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, outsi
         LO.append(lo)
         HI.append(hi)
         L.append(min(PI[e, HW], PI[e, HH], PJ[inner[k], HW], PJ[inner[k], HH]))
-    t0 = 0
     for r, e in enumerate(ws):
         o = out_w[r] | np.roll(out_w[r], 1) | np.roll(out_w[r], -1)
         v = vI[e][o] if o.any() else vI[e]
         lo, hi = v.min(0), v.max(0)
         ki = near(vI[e], lo, hi)
-        for t in range(t0, t0 + len(picks[r])):
+        for t in lines[r]:
             owner.append(e)
             A.append(np.concatenate((aI[e][ki], -normal[t][None])))
             B.append(np.concatenate((bI[e][ki], [-h[t]])))
             LO.append(lo)
             HI.append(hi)
             L.append(min(PI[e, HW], PI[e, HH]))
-        t0 += len(picks[r])
     # pad to a common width with void half-planes (a = 0, b = 1e200: zero soft-min weight), so a
     # row's result does not depend on its batch (the memo relies on that)
     width = max(len(b) for b in B)
