@@ -29,6 +29,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
+from dataclasses import field as dc_field
 
 import numpy as np
 
@@ -70,6 +71,11 @@ class Squircle:
     height: float
     theta: float = 0.0
     s: float = 0.99
+    _hash: int = dc_field(init=False, repr=False, compare=False, default=0)
+
+    def __hash__(self) -> int:
+        # cached: squircles key the forest memo and the geometry caches (many lookups per build)
+        return self._hash
 
     def __post_init__(self):
         c = tuple(float(v) for v in np.asarray(self.center, dtype=float).reshape(-1))
@@ -92,6 +98,7 @@ class Squircle:
                              "width" if self.width <= 0 else "height")
         if not 0.0 <= self.s < 1.0:
             raise WorldError(f"squircle s must be in [0, 1), got {self.s}", "s")
+        object.__setattr__(self, "_hash", hash((self.center, self.width, self.height, self.theta, self.s)))
 
     # ------------------------------------------------------------------ constructors / IO
     @classmethod
