@@ -68,6 +68,14 @@ def _colormap(t: np.ndarray, alpha: int = 200) -> np.ndarray:
     return np.hstack([rgb, np.full((len(t), 1), alpha)]).astype(np.uint8)
 
 
+def _ranks(v: np.ndarray) -> np.ndarray:
+    """Ranks of ``v`` scaled to ``[0, 1]`` (histogram equalisation: a navigation function is
+    close to its maximum almost everywhere, so a linear scale shows little but the goal)."""
+    t = np.empty(len(v))
+    t[np.argsort(v, kind="stable")] = np.linspace(0.0, 1.0, len(v)) if len(v) > 1 else 0.0
+    return t
+
+
 def _grid(lo, hi, n_points: int) -> tuple[np.ndarray, float]:
     """A square grid of about ``n_points`` points over the box ``lo..hi``; ``(points (N, 2), step)``."""
     size = np.maximum(np.asarray(hi, float) - np.asarray(lo, float), 1e-6)
@@ -322,9 +330,8 @@ class Telemetry:
         if end == len(grid):
             self._heat_job = None
             free = job["free"]
-            mu = float(nf.params.mu) or 1.0
             self._rec.log("world/nf", rr.Points2D(grid[free], radii=[0.5 * step],
-                                                  colors=_colormap(job["value"][free] / mu), draw_order=-10.0))
+                                                  colors=_colormap(_ranks(job["value"][free])), draw_order=-10.0))
         self.field_times.append(time.perf_counter() - t0)
 
     def _log_field(self, node, fld, pose) -> None:
