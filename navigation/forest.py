@@ -114,16 +114,6 @@ def clear_cache() -> None:
     clear_geometry_cache()
 
 
-def _body(sq: Squircle, n: int) -> "_Body":
-    """Memoised :class:`_Body` of ``sq``."""
-    key = (sq, n)
-    b = _BODIES.get(key)
-    if b is None:
-        b = _Body(sq, n)
-        _BODIES.put(key, b)
-    return b
-
-
 # ---------------------------------------------------------------------- result
 @dataclass(frozen=True, slots=True, eq=False)
 class Forest:
@@ -322,15 +312,40 @@ class _Body:
 
     __slots__ = ("sq", "row", "psi", "pts", "w0", "spacing", "radius")
 
-    def __init__(self, sq: Squircle, n: int):
+    def __init__(self, sq: Squircle, n: int, _arrays=None):
+        row, psi, pts = _arrays if _arrays is not None else _sample_rows(pack([sq]), n)
         self.sq = sq
-        self.row = pack([sq])[0]
-        self.psi = sq.boundary_psi(n)
-        self.pts = sq.point_at(self.psi)
+        self.row = row[0] if row.ndim == 2 else row
+        self.psi = psi.reshape(-1)
+        self.pts = pts.reshape(-1, 2)
         gaps = np.diff(np.concatenate((self.psi, [self.psi[0] + 2.0 * np.pi])))
         self.w0 = 1.5 * float(gaps.max())
         self.spacing = float(np.max(np.linalg.norm(self.pts - np.roll(self.pts, 1, axis=0), axis=1)))
         self.radius = sq.bounding_radius
+
+
+def _sample_rows(P: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``n`` boundary angles per squircle row of ``P (K, 7)``, evenly spaced in arc length (as
+    :meth:`Squircle.boundary_psi`: arc length on ``8 n`` chords, inverted by interpolation), and
+    their points: ``(P, psi (K, n), pts (K, n, 2))``, all rows at once."""
+    fine = np.linspace(0.0, 2 * np.pi, 8 * n + 1)
+    pts = _xy(P, np.broadcast_to(fine, (len(P), len(fine))))
+    seg = np.hypot(*np.moveaxis(np.diff(pts, axis=1), -1, 0))
+    arc = np.concatenate((np.zeros((len(P), 1)), np.cumsum(seg, axis=1)), axis=1)
+    psi = np.stack([np.interp(np.linspace(0.0, a[-1], n, endpoint=False), a, fine) for a in arc])
+    return P, psi, _xy(P, psi)
+
+
+def _bodies(squircles: Sequence[Squircle], n: int) -> list["_Body"]:
+    """Memoised :class:`_Body` of each squircle; the missing ones are sampled in one batch."""
+    out = [_BODIES.get((sq, n)) for sq in squircles]
+    todo = [k for k, b in enumerate(out) if b is None]
+    if todo:
+        P, psi, pts = _sample_rows(pack([squircles[k] for k in todo]), n)
+        for t, k in enumerate(todo):
+            out[k] = _Body(squircles[k], n, (P[t], psi[t], pts[t]))
+            _BODIES.put((squircles[k], n), out[k])
+    return out
 
 
 def _signed_distance(bodies: Sequence[_Body], bid: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -926,9 +941,9 @@ def build_forest(workspace: Squircle, obstacles: Sequence[Squircle], *, min_gap:
         raise ValueError(f"min_gap and min_overlap must be finite and >= 0, got {min_gap}, {min_overlap}")
 
     n = len(obstacles)
-    bodies = [_body(o, _SAMPLES) for o in obstacles]
+    bodies = _bodies(obstacles, _SAMPLES)
     W = n  # body index of the workspace
-    bodies.append(_body(workspace, _WS_SAMPLES))
+    bodies.append(_bodies([workspace], _WS_SAMPLES)[0])
 
     # --- relation of every obstacle to the workspace boundary
     dropped: dict[int, str] = {}
