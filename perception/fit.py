@@ -312,7 +312,7 @@ def _solve(seed: np.ndarray, q: np.ndarray, free: np.ndarray, cfg: PerceptionCon
         r0 = x0 if ref_seed is None else np.clip(ref_seed, lo + 1e-9, hi - 1e-9)
         ref = (math.exp(r0[2]), math.exp(r0[3]), 0.1 * math.sqrt(len(q)))
         res = least_squares(_residuals, x0, jac=_residuals_jac, bounds=(lo, hi), args=(q, free, 1.0, ref),
-                            x_scale=scale, method="trf", max_nfev=20, xtol=1e-6, ftol=1e-6)
+                            x_scale=scale, method="trf", max_nfev=20, xtol=1e-4, ftol=1e-4)
     except (ValueError, np.linalg.LinAlgError):
         return None
     if not np.all(np.isfinite(res.x)):
@@ -446,7 +446,9 @@ def fit_squircle(points, *, views=None, free=None, config: PerceptionConfig | No
     best = None
     seeds = _seeds(qs, vs, cfg)
     warm = _warm_seed(init, qs, cfg)
-    for k, seed in enumerate(([warm] if warm is not None else []) + seeds):
+    # with a warm start the previous estimate stands for its basin: the rectangle seed is the
+    # alternative (the ellipse seed only without a warm start)
+    for k, seed in enumerate(([warm] + seeds[:1]) if warm is not None else seeds):
         if best is not None and best[1] <= 0.5 * cfg.split_tol and best[2] == 0.0:
             break  # the warm or rectangle seed already explains the points and the free space
         out = _solve(seed, qs, fs, cfg, ref_seed=seeds[0])
