@@ -4,8 +4,8 @@ The map starts knowing only the workspace and grows from scans:
 
 1. **Ingestion** (:mod:`perception.ingest`): a scan and the pose at its stamp become world
    points; bad messages are rejected with a :class:`~perception.errors.ScanError` (logged), NaN
-   beams are trimmed (logged). Returns within ``ws_band`` of the workspace boundary are the
-   boundary itself and are dropped.
+   beams are trimmed (logged). Returns within ``ws_band`` of the workspace boundary (distance
+   to first order, not the radial error) are the boundary itself and are dropped.
 2. **Evidence**: returns are averaged in ``voxel`` cells (with the directions they were seen
    from); the beams' paths, up to ``free_margin`` before their returns (``range_max`` for no
    return), mark ``free_cell`` cells as free.
@@ -356,12 +356,23 @@ class ObstacleMap:
         ok = (ij[:, 0] >= 0) & (ij[:, 1] >= 0) & (ij[:, 0] < shape[0]) & (ij[:, 1] < shape[1])
         return ij, ok
 
+    def _boundary_distance(self, q: np.ndarray) -> np.ndarray:
+        """Distance of points ``q (N, 2)`` inside the workspace to its boundary, to first
+        order: ``(1 - g) / |grad g|`` with the gauge ``g = sqrt(beta + 1)`` (``grad g =
+        grad beta / 2 g``). Not the radial error ``|q - c| (1 - 1/g)``, which exceeds the
+        distance by up to ``|q - c| / b`` (about 2 near the corners of a 7 x 4 m workspace)
+        and would let noisy returns of the boundary through as obstacles."""
+        ws = self.workspace
+        g = np.maximum(gauge(ws, q), 1e-9)
+        dg = np.linalg.norm(ws.gradient(q), axis=1) / (2.0 * g)
+        return (1.0 - g) / np.maximum(dg, 1e-12)
+
     def _integrate(self, stamp: float, pose, pts: np.ndarray, scan: Scan | None, notes: list, trimmed: int) -> MapUpdate:
         cfg = self.config
         # --- trim: the workspace boundary itself, returns inside the robot disc, off-grid points
         keep = np.ones(len(pts), bool)
         if len(pts):
-            keep &= radial_error(self.workspace, pts) < -cfg.ws_band
+            keep &= self._boundary_distance(pts) > cfg.ws_band
             if pose is not None:
                 keep &= np.hypot(pts[:, 0] - pose[0], pts[:, 1] - pose[1]) > self.radius
         beam_of = np.nonzero(scan.hit)[0] if scan is not None else None
