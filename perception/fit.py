@@ -451,7 +451,7 @@ def fit_squircle(points, *, views=None, free=None, config: PerceptionConfig | No
     for k, seed in enumerate(([warm] + seeds[:1]) if warm is not None else seeds):
         if best is not None and best[1] <= 0.5 * cfg.split_tol and best[2] == 0.0:
             break  # the warm or rectangle seed already explains the points and the free space
-        out = _solve(seed, qs, fs, cfg, ref_seed=seeds[0])
+        out = _solve(seed, qs, fs, cfg, ref_seed=seeds[0] if (k == 0 and warm is not None) else None)
         if out is None:
             continue
         x, rms, pen, p95 = out
