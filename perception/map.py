@@ -219,7 +219,8 @@ class ObstacleMap:
         self.last_pose: tuple[float, float, float] | None = None
         self.scans = 0
         #: counters: refit triggers (``refit_new``, ``refit_merged``, ``refit_grown``,
-        #: ``refit_free``), ``forest_checks`` (calls of build_forest), ``repairs``, ``reverts``
+        #: ``refit_free``), ``forest_checks`` (calls of build_forest), ``repairs``,
+        #: ``reverts``, ``recovered`` (returns a region trim left uncovered, fitted again)
         self.stats: Counter = Counter()
 
     # ------------------------------------------------------------------ construction
@@ -678,10 +679,37 @@ class ObstacleMap:
         cl.last_fit = self.scans
         cl.pending = False
         # regions: keep their discs (grown by the radius) free
-        for i in list(new_ids):
+        if self._trim_regions(new_ids, proposed, changed, removed):
+            # decompose rather than uncover: returns a trim left outside the cluster's estimates
+            # (a piece that bridged free space around the region) get estimates of their own
+            ids = [i for i in cl.ids if i in proposed]
+            err = (np.min([radial_error(proposed[i].squircle, q) for i in ids], axis=0) if ids
+                   else np.full(len(q), np.inf))
+            lost = err > self.config.refit_tol
+            if np.count_nonzero(lost):
+                extra = fit_cluster(q[lost], views=v[lost], free=free, config=self.config, split=not cl.single,
+                                    grow=1.05 * self.radius)
+                add = []
+                for f in extra:
+                    i = self._next_id
+                    self._next_id += 1
+                    proposed[i] = Estimate(i, f.squircle, inflate(f.squircle, self.radius), lab, f.rms, f.closed)
+                    changed.add(i)
+                    add.append(i)
+                cl.ids.extend(add)
+                self.stats["recovered"] += int(np.count_nonzero(lost))
+                self._trim_regions(add, proposed, changed, removed)
+
+    def _trim_regions(self, ids, proposed, changed, removed) -> bool:
+        """Trim the changed estimates ``ids`` clear of every region disc grown by the radius;
+        True when any was trimmed or removed."""
+        any_trim = False
+        for i in list(ids):
             if i in changed:
                 for c, rr in self.regions:
-                    self._trim(i, c, rr + self.radius, proposed, changed, removed, f"region at {c.tolist()}")
+                    if self._trim(i, c, rr + self.radius, proposed, changed, removed, f"region at {c.tolist()}"):
+                        any_trim = True
+        return any_trim
 
     def _clear_robot(self, pose, proposed, changed, removed, notes) -> None:
         p = np.asarray(pose[:2], dtype=float)
