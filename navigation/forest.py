@@ -77,7 +77,7 @@ from scipy.spatial import cKDTree
 from ._memo import Memo
 from .errors import ForestError
 from .geometry import (COS, CX, CY, HH, HW, S, SIN, Squircle, boundary_jet_rows, clear_geometry_cache, pack,
-                       signed_distance_rows)
+                       ray_length_packed, signed_distance_rows)
 
 __all__ = ["WORKSPACE", "NO_PARENT", "Forest", "build_forest", "separation", "common_center", "clear_cache"]
 
@@ -91,6 +91,7 @@ _WS_SAMPLES = 1024  # boundary samples of the workspace
 _POLY = 128  # vertices of the polygons inscribed in a child and its parent (common centres)
 _WS_TANGENTS = 8  # tangent lines of the workspace tried for a child of the workspace
 _THIN_ROTATIONS = (0.39,)  # rotated re-polls of the thin-intersection pattern search
+_FAR_RAYS = 720  # rays from the common centre of a workspace child sampling its far gap
 _THIN = 0.01  # common-centre depths below this are refined with exact distances
 _CONTAINED = 1e-12  # beta tolerance of the containment test
 _MEMO_SIZE = 65536  # pairwise results kept by the memo (a few hundred bytes each)
@@ -150,6 +151,10 @@ class Forest:
         Euclidean distance between obstacles (0 where they overlap and on the diagonal).
     wall_distance : ndarray, shape (M,)
         Distance to the workspace boundary (0 for obstacles that cross it).
+    far_gap : ndarray, shape (M,)
+        For a child of the workspace: the smallest distance, along the rays from its common
+        centre on which it reaches into the workspace, from its boundary to the workspace
+        boundary beyond it (the room its purge shell has there); ``inf`` for other obstacles.
     """
 
     workspace: Squircle
@@ -165,6 +170,7 @@ class Forest:
     center_depth: np.ndarray
     distances: np.ndarray
     wall_distance: np.ndarray
+    far_gap: np.ndarray
 
     def __len__(self) -> int:
         return len(self.obstacles)
@@ -876,6 +882,35 @@ def _centers(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, outside: np.
     return c, d
 
 
+def _far_gaps(bodies: Sequence[_Body], I: Sequence[int], W: int, centres: np.ndarray, n: int = _FAR_RAYS) -> np.ndarray:
+    """:attr:`Forest.far_gap` of the workspace children ``I`` with common centres ``centres``.
+
+    On ``n`` rays from the centre (evenly spaced directions), those whose exit from the child
+    lies inside the workspace: the workspace exit distance minus the child's exit distance
+    (exact ray lengths); the minimum over them (memoised per child and workspace).
+    """
+    out = np.empty(len(I))
+    ws = bodies[W]
+    for k, (i, c) in enumerate(zip(I, centres)):
+        key = ("far", bodies[i].sq, ws.sq)
+        g = _PAIRS.get(key)
+        if g is None:
+            a = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
+            u = np.stack((np.cos(a), np.sin(a)), axis=1)
+            o = np.broadcast_to(c, (n, 2))
+            r_leaf = ray_length_packed(np.broadcast_to(bodies[i].row, (n, 7)), o, u)
+            tip = o + r_leaf[:, None] * u
+            inside = _beta(ws.row[None], tip[None])[0] < 0
+            if inside.any():
+                r_exit = ray_length_packed(np.broadcast_to(ws.row, (int(inside.sum()), 7)), o[inside], u[inside])
+                g = float(np.min(r_exit - r_leaf[inside]))
+            else:
+                g = math.inf
+            _PAIRS.put(key, g)
+        out[k] = g
+    return out
+
+
 def _root_depth(body: _Body) -> float:
     """Depth of a squircle's own centre inside it: ``min(width, height) / 2`` exactly (the
     unit squircle's ray length is >= 1, equal to 1 along the axes, so the shortest ray from the
@@ -1091,7 +1126,11 @@ def build_forest(workspace: Squircle, obstacles: Sequence[Squircle], *, min_gap:
                           f"separate them or make them overlap more", obstacles=(keep[i], other),
                           rule="shallow-overlap")
 
-    for arr in (center, cdepth, distances, wall):
+    far = np.full(m, np.inf)
+    ws_kids = [i for i in nonroot if parent[i] == WORKSPACE]
+    if ws_kids:
+        far[ws_kids] = _far_gaps(bodies, [keep[i] for i in ws_kids], W, center[ws_kids])
+    for arr in (center, cdepth, distances, wall, far):
         arr.flags.writeable = False
     return Forest(
         workspace=workspace,
@@ -1107,4 +1146,5 @@ def build_forest(workspace: Squircle, obstacles: Sequence[Squircle], *, min_gap:
         center_depth=cdepth,
         distances=distances,
         wall_distance=wall,
+        far_gap=far,
     )

@@ -25,8 +25,11 @@ Parameter rule (``NavParams``, recorded on the object, every entry overridable)
 ``width_fraction f``    0.45: every shell width is ``f`` times the clearance it must respect,
                         so shells of one stage (``< 0.5`` of any gap each) never meet
 purge width ``h_i``     ``f * min(distance to every obstacle present when leaf i is purged but
-                        its parent, to the workspace boundary (unless it is the parent))``,
-                        capped at ``width_cap`` (1 m) and twice the leaf's size
+                        its parent, to the workspace boundary)``, capped at ``width_cap``
+                        (1 m) and twice the leaf's size. For a child of the workspace the
+                        boundary distance is ``Forest.far_gap``: the room beyond the leaf along
+                        its purge rays (a wider shell would move the opposite side of the
+                        workspace into free space and break the diffeomorphism there)
 root width ``h_j``      ``f * min(distance to other roots, to the boundary)``, capped
 workspace width ``h_0`` ``workspace_fraction`` (0.8) times the workspace's inscribed radius (its map
                         acts after the inner discs have become points: see ``SphereToPoint``)
@@ -230,8 +233,9 @@ class NavigationFunction:
             for i in level:
                 others = [k for k in present if k != i and k != f.parent[i]]
                 clear = [np.inf] + list(f.distances[i, others])
-                if f.parent[i] != WORKSPACE:
-                    clear.append(f.wall_distance[i])
+                # the shell must not reach the workspace boundary: beyond the leaf (a workspace
+                # child, along its purge rays) or anywhere (an inner leaf)
+                clear.append(f.far_gap[i] if f.parent[i] == WORKSPACE else f.wall_distance[i])
                 size = 2.0 * f.obstacles[i].bounding_radius
                 purge[i] = min(frac * min(clear), cap, size)
         roots = list(f.roots)

@@ -154,6 +154,42 @@ def test_descent_reaches_goal_shared_world(name, goal_index):
     check_convergence(world, goal, starts, f"{name}")
 
 
+def _hanging_wall_world(gap: float):
+    """A corridor (the configuration space of ``tests/test_executive.py``'s ``_corridor``) with a
+    0.41 m thick wall hanging from its top side, leaving ``gap`` under it."""
+    from navigation.world import World
+
+    bottom, top = 0.1, 1.6
+    lo = bottom + gap
+    return World.from_dict({
+        "name": "hanging", "workspace": {"center": [2.0, 0.75], "width": 3.8, "height": 1.3, "s": 0.99},
+        "obstacles": [{"center": [2.6, (lo + top) / 2], "width": 0.41, "height": top - lo, "s": 0.99}],
+        "regions": {"a": {"center": [1.5, 0.75], "radius": 0.15}, "b": {"center": [3.5, 0.75], "radius": 0.15}},
+        "robot": {"radius": 0.05, "start": [0.5, 0.75, 0.0], "v_max": 0.5, "omega_max": 1.5},
+        "lidar": {"range": 1.5, "fov": 6.283185, "beams": 360, "noise_std": 0.0, "rate_hz": 10},
+        "task": "F a & F b"})
+
+
+@pytest.mark.parametrize("gap", (0.4, 0.6, 0.9))
+def test_descent_passes_under_a_wall_hanging_from_the_boundary(gap):
+    """The purge shell of a workspace child is limited by the room beyond it (``far_gap``): a
+    shell reaching the opposite side of the workspace moved that side into free space, and
+    descents from under the wall stalled next to it (the executive's corridor mission stalled
+    the same way). Random starts plus a grid of starts in the passage; every run reaches the
+    goal, none stops on the way."""
+    world = _hanging_wall_world(gap)
+    goal = world.regions["b"].center
+    starts = random_free_points(world, N_STARTS, np.random.default_rng([int(gap * 10), 0xC0]))
+    gx, gy = np.meshgrid(np.linspace(1.6, 3.4, 10), 0.1 + np.linspace(0.02, gap - 0.02, 5))
+    passage = np.stack((gx.ravel(), gy.ravel()), axis=1)
+    nf = NavigationFunction(world, goal)
+    passage = passage[nf.is_free(passage)]
+    results = descend_many(nf, passage)
+    stuck = [(p.tolist(), r.reason, r.path[-1].tolist()) for p, r in zip(passage, results) if not r.reached]
+    assert not stuck, f"{len(stuck)}/{len(passage)} passage starts did not reach the goal: {stuck[:5]}"
+    check_convergence(world, goal, starts, f"hanging wall, gap {gap}")
+
+
 def _random_world_case(seed: int) -> None:
     world = random_forest_world(seed)
     goal = list(world.regions.values())[0].center

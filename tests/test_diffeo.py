@@ -36,6 +36,10 @@ N_FREE = 2000
 
 @functools.lru_cache(maxsize=None)
 def _world(kind: str, key):
+    if kind == "hanging":  # a wall hanging from the boundary, ``key`` m above the opposite side
+        from .test_convergence import _hanging_wall_world
+
+        return _hanging_wall_world(key)
     return navigation.load_world(world_file(key)) if kind == "shared" else random_forest_world(key)
 
 
@@ -45,7 +49,8 @@ def _nf(kind: str, key) -> NavigationFunction:
     return NavigationFunction(w, list(w.regions.values())[0].center)
 
 
-WORLD_CASES = [("shared", n) for n in SHARED_WORLDS] + [("random", s) for s in RANDOM_SEEDS]
+WORLD_CASES = ([("shared", n) for n in SHARED_WORLDS] + [("random", s) for s in RANDOM_SEEDS]
+               + [("hanging", 0.4)])
 WORLD_IDS = [f"{k}-{v}" for k, v in WORLD_CASES]
 
 

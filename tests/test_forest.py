@@ -259,6 +259,19 @@ class TestDistances:
         assert f.wall_distance[2] == pytest.approx(-WS.distance([6.0, 2.5]), abs=1e-4)
         assert f.wall_distance[0] == pytest.approx(-WS.distance([2.5, 3.0]), abs=1e-4)
 
+    def test_far_gap_of_a_wall_hanging_from_the_boundary(self):
+        """A wall hanging from the top side ends ``gap`` above the bottom side: straight down from
+        its common centre the workspace is left ``gap`` beyond the wall, and no ray through the
+        wall finds less (its rounded end bends away); other obstacles have no far gap."""
+        ws = Squircle((2.0, 0.75), 4.0, 1.5, 0.0, 0.99)
+        hanging = Squircle((2.6, 1.15), 0.2, 1.1, 0.0, 0.99)  # from y = 0.6 up through the top (1.5)
+        post = Squircle((1.0, 0.75), 0.2, 0.2, 0.0, 0.99)
+        f = build_forest(ws, [hanging, post])
+        assert f.parent == (WORKSPACE, NO_PARENT)
+        assert f.far_gap[0] == pytest.approx(0.6, abs=2e-3)
+        assert f.far_gap[0] <= 0.6 + 1e-9
+        assert f.far_gap[1] == np.inf
+
     def test_wall_distance_matches_brute_force(self, comb):
         for i in range(len(comb)):
             if comb.parent[i] == WORKSPACE:
@@ -501,7 +514,7 @@ class TestFastPathsMatchReferences:
 def _assert_same_forest(a: Forest, b: Forest) -> None:
     for name in ("obstacles", "source_index", "dropped", "parent", "children", "depth", "roots", "tree_of"):
         assert getattr(a, name) == getattr(b, name), name
-    for name in ("center", "center_depth", "distances", "wall_distance"):
+    for name in ("center", "center_depth", "distances", "wall_distance", "far_gap"):
         assert np.allclose(getattr(a, name), getattr(b, name), rtol=0, atol=1e-12), name
 
 
