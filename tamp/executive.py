@@ -59,8 +59,17 @@ Choices where the paper is vague, and why
 * **Blocked.** When no accepting plan exists in the current navigation map the executive stops
   (``v = omega = 0``), reports ``blocked`` with the regions it cannot reach, and on every later
   map change rebuilds the roadmap, re-evaluates the removed transitions and re-plans.
-* **Weights.** The rotation weights of eq. 26 stay at their initial value (the least-squares
-  refit of section 4.2.3 needs measured costs per traversed edge; not wired in yet).
+* **Weights** (section 4.2.3, step III). The paper refits ``w`` from the "actual costs" of the
+  traversed edges without defining them. The cost of eq. 26 is in metres (``d`` plus
+  ``w |dtheta|``), so the measured cost of an edge is the distance the robot could have driven
+  at full speed in the time it took: ``gamma* = v_max * dt``, ``dt`` from passing one waypoint
+  to passing the next (turning and slowing down make it exceed ``d``). Only edges completed by
+  passing their end waypoint count (not legs cut by a re-plan, the last edge into a region, or
+  a waypoint passed by the stall guard). From ``refit_min_edges`` edges on, every new edge
+  refits ``w* = (Q^T Q)^-1 Q^T (gamma* - d)`` over all edges so far (``d``, ``Q`` of the edge
+  as driven: its end poses), clipped to ``weight_bounds``; the navigation-map costs of every
+  evaluated tree are then recomputed with ``w*`` (same paths, :meth:`HarmonicTree.recost`) and
+  new trees are searched with ``w*``; the next re-plan uses them.
 
 Commands are always finite and within ``v_max`` / ``omega_max``; a non-finite or malformed pose,
 or a pose outside the workspace, stops the robot with state ``error``.
@@ -89,7 +98,7 @@ from perception.fit import inflate
 from perception.map import ObstacleMap
 
 from .errors import InvalidRequestError, NoPlanError
-from .harmonic_tree import NoTreePathError, RotationWeights, TreeFailure, plan_tree
+from .harmonic_tree import NoTreePathError, RotationWeights, TreeFailure, plan_tree, rotation_terms
 from .ltl import ops
 from .navmap import START, Node
 from .planner import MissionMode, MissionPlanner, Plan, _Mission, _Urgent
@@ -177,6 +186,12 @@ class ExecutiveConfig:
     blocked_timeout : float
         How long (s) :func:`tamp.run.run_mission` waits in ``blocked`` before giving up
         (the executive itself waits forever).
+    refit_weights : bool
+        Refit the rotation weights of eq. 26 from the traversed edges (section 4.2.3, step III).
+    refit_min_edges : int
+        Traversed edges needed before the first refit.
+    weight_bounds : (float, float)
+        Each refitted weight is clipped to this range (metres per radian).
     """
 
     buffer: float = 0.15
@@ -189,6 +204,9 @@ class ExecutiveConfig:
     max_plan_rounds: int = 40
     blocked_timeout: float = 10.0
     stall_ticks: int = 20
+    refit_weights: bool = True
+    refit_min_edges: int = 4
+    weight_bounds: tuple = (0.01, 1.0)
 
     def __post_init__(self):
         for name in ("buffer", "fallback_buffer", "check_margin", "blocked_timeout"):
@@ -197,10 +215,19 @@ class ExecutiveConfig:
                 raise TampError(f"ExecutiveConfig.{name} must be a finite number >= 0, got {v!r}")
         if not (isinstance(self.waypoint_tolerance, (int, float)) and self.waypoint_tolerance > 0):
             raise TampError(f"ExecutiveConfig.waypoint_tolerance must be > 0, got {self.waypoint_tolerance!r}")
-        for name in ("rebuild_after", "n_orient", "n_headings", "max_plan_rounds", "stall_ticks"):
+        for name in ("rebuild_after", "n_orient", "n_headings", "max_plan_rounds", "stall_ticks", "refit_min_edges"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:
                 raise TampError(f"ExecutiveConfig.{name} must be a positive int, got {v!r}")
+        if not isinstance(self.refit_weights, bool):
+            raise TampError(f"ExecutiveConfig.refit_weights must be a bool, got {self.refit_weights!r}")
+        try:
+            lo, hi = (float(v) for v in self.weight_bounds)
+        except (TypeError, ValueError):
+            raise TampError(f"ExecutiveConfig.weight_bounds must be (low, high), got {self.weight_bounds!r}") from None
+        if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo <= hi):
+            raise TampError(f"ExecutiveConfig.weight_bounds must satisfy 0 < low <= high, got {self.weight_bounds!r}")
+        object.__setattr__(self, "weight_bounds", (lo, hi))
 
 
 @dataclass(frozen=True, slots=True)
@@ -331,6 +358,12 @@ class Executive:
         self.planner = MissionPlanner(world, task, n_orient=cfg.n_orient)
         self.task = self.planner.mission
         self.weights = RotationWeights()
+        self.weight_fits = 0  #: refits of the rotation weights so far
+        # traversed edges: translation d, rotation terms Q (eq. 26), measured cost v_max * dt
+        self._edges_d: list[float] = []
+        self._edges_q: list[tuple[float, float]] = []
+        self._edges_cost: list[float] = []
+        self._edge_t0: float | None = None  # when the robot left the current edge's start
         self._roads = [_Roads(world.workspace, r, cfg.buffer, known_obs)]
         if cfg.fallback_buffer < cfg.buffer and cfg.fallback_buffer >= 0:
             self._roads.append(_Roads(world.workspace, r, cfg.fallback_buffer, known_obs))
@@ -888,6 +921,7 @@ class Executive:
         wps = _pass_through_headings(wps)
         self.leg = wps
         self.wp = 1 if len(wps) > 1 else 0
+        self._edge_t0 = self.time
         self._stalled = 0
         self.target = target
         if self.state is not ExecutiveState.EXECUTING:
@@ -940,6 +974,7 @@ class Executive:
         q = np.array(p[:2])
         tol = self.config.waypoint_tolerance
         while self.wp < len(self.leg) - 1 and np.linalg.norm(q - self.leg[self.wp][:2]) < tol:
+            self._edge_done(self.wp)
             self.wp += 1
         cur = self._field(self.leg[self.wp])
         if cur is None:
@@ -960,6 +995,7 @@ class Executive:
                 d = float(np.linalg.norm(q - self.leg[self.wp][:2]))
                 if self.wp < len(self.leg) - 1 and d < 3 * tol:
                     self.wp += 1
+                    self._edge_t0 = None  # a stalled edge is not a measurement
                     self._note(f"stalled {d:.2f} m from a waypoint: passing it")
                 else:
                     self._need_plan = True
@@ -967,6 +1003,45 @@ class Executive:
         else:
             self._stalled = 0
         return cmd.v, cmd.omega
+
+
+    # ------------------------------------------------------------------ rotation weights
+    def _edge_done(self, k: int) -> None:
+        """The robot passed waypoint ``k``: record edge ``k - 1 -> k`` and refit the weights."""
+        t0, self._edge_t0 = self._edge_t0, self.time
+        if t0 is None or k < 1 or not self.config.refit_weights:
+            return
+        a, b = self.leg[k - 1], self.leg[k]
+        d = math.hypot(b[0] - a[0], b[1] - a[1])
+        dt = self.time - t0
+        if not (d > 0 and dt > 0 and math.isfinite(dt)):
+            return
+        self._edges_d.append(d)
+        self._edges_q.append(tuple(float(x) for x in rotation_terms(a[:2], a[2], b[:2], b[2])))
+        self._edges_cost.append(self.control.v_max * dt)
+        if len(self._edges_d) >= self.config.refit_min_edges:
+            self._refit_weights()
+
+    def _refit_weights(self) -> None:
+        """Least-squares weights over the traversed edges (section 4.2.3, step III), then the
+        map costs of every evaluated tree under them."""
+        try:
+            w = RotationWeights.fit(self._edges_d, np.array(self._edges_q), self._edges_cost)
+        except TampError:
+            return  # Q^T Q singular so far: keep the current weights
+        lo, hi = self.config.weight_bounds
+        w = RotationWeights(min(max(w.w1, lo), hi), min(max(w.w2, lo), hi))
+        if w == self.weights:
+            return
+        self.weights = w
+        self.weight_fits += 1
+        nm = self.planner.navmap
+        for (a, b), tree in self._pair.items():
+            if not isinstance(tree, Exception):
+                nm.set_cost(a, b, tree.recost(w))
+        for b, tree in self._start_pair.items():
+            if not isinstance(tree, Exception):
+                nm.set_cost(Node(START, 0), b, tree.recost(w), symmetric=False)
 
 
 def _as_region(name, spec) -> Region:

@@ -120,6 +120,135 @@ def test_blocked_executive_resumes_when_the_mission_changes():
     assert ex.state is ExecutiveState.DONE and "a" in ex.visited, ex.messages
 
 
+def _open_corridor() -> World:
+    """``_corridor(0.6)`` with its wall known: the robot can reach ``b``."""
+    d = json.loads(json.dumps(_corridor(0.6).to_dict()))
+    d["known_obstacles"] = [0]
+    return World.from_dict(d)
+
+
+class _ScriptedMap:
+    """Stands in for perception: the scans are ignored and the estimates change when told to.
+
+    Only what the executive reads is provided (``update_scan``, ``estimates``, ``inflated``,
+    ``obstacles``, ``config``, ``regions``)."""
+
+    def __init__(self, world: World):
+        from perception.map import ObstacleMap
+
+        self._real = ObstacleMap.from_world(world)
+        self.config = self._real.config
+        self.regions = self._real.regions
+        self.radius = float(world.robot.radius)
+        self._est = {}
+        self._next = None  # MapUpdate delivered by the next update_scan
+
+    def script(self, added=(), removed=()):
+        from perception.fit import inflate
+        from perception.map import Estimate, MapUpdate
+
+        for i, sq in added:
+            self._est[i] = Estimate(i, sq, inflate(sq, self.radius), cluster=i)
+        for i in removed:
+            self._est.pop(i)
+        self._next = MapUpdate(None, added=tuple(i for i, _ in added), removed=tuple(removed))
+
+    def update_scan(self, scan, pose, now=None):
+        from perception.map import MapUpdate
+
+        upd, self._next = self._next or MapUpdate(None), None
+        return upd
+
+    @property
+    def estimates(self):
+        return dict(self._est)
+
+    def inflated(self):
+        return [self._est[k].inflated for k in sorted(self._est)]
+
+    def obstacles(self):
+        return [self._est[k].squircle for k in sorted(self._est)]
+
+
+def test_blocked_executive_resumes_when_a_map_update_reopens_the_way():
+    """Issue 6, bad input: blocked by an estimate that closes the corridor, the executive stops;
+    when a later map update removes it, the executive re-plans by itself and completes."""
+    from navigation.geometry import Squircle
+
+    world = _open_corridor()
+    ex = Executive(world, "F b", known=True)
+    ex.omap = omap = _ScriptedMap(world)
+    sim = Simulator(world, seed=0)
+    _drive(ex, sim, 20, stop=lambda ex: False)
+    assert ex.state is ExecutiveState.EXECUTING
+    # a (phantom) estimate fills the gap under the wall: b is walled off
+    omap.script(added=[(7, Squircle((2.6, 0.45), 0.2, 0.9, 0.0, 0.99))])
+    res = _drive(ex, sim, 5, stop=lambda ex: ex.state is ExecutiveState.BLOCKED)
+    assert ex.state is ExecutiveState.BLOCKED and ex.unreachable == ("b",), ex.messages
+    for _ in range(30):  # stays stopped while nothing changes
+        res = ex.tick(sim.pose_message(), scan=sim.scan_message(), now=sim.time)
+        assert (res.v, res.omega) == (0.0, 0.0) and ex.state is ExecutiveState.BLOCKED
+        sim.step((res.v, res.omega))
+    omap.script(removed=[7])  # the estimate goes: the way is open again
+    _drive(ex, sim, 600)
+    assert ex.state is ExecutiveState.DONE and "b" in ex.visited, ex.messages
+    assert not sim.metrics.collisions
+
+
+# ---------------------------------------------------------------------- rotation weights
+def test_rotation_weights_are_refitted_from_traversed_edges():
+    """Section 4.2.3 step III: with edges whose measured costs follow ``d + w . Q`` exactly, the
+    refit recovers ``w``; every evaluated tree's map cost is then its cost under ``w``."""
+    import numpy as np
+
+    from tamp.harmonic_tree import RotationWeights, rotation_terms
+
+    world = shared_world("simple")
+    ex = Executive(world, "F a & F b", known=True)
+    sim = Simulator(world, seed=0)
+    _drive(ex, sim, 5, stop=lambda ex: False)  # plans: trees evaluated
+    assert ex._pair or ex._start_pair
+    true = RotationWeights(0.3, 0.2)
+    rng = np.random.default_rng(0)
+    ex.leg = tuple((float(x), float(y), float(t)) for x, y, t in
+                   zip(rng.uniform(0, 4, 8), rng.uniform(0, 1.5, 8), rng.uniform(-3, 3, 8)))
+    ex._edge_t0 = ex.time = 0.0
+    for k in range(1, len(ex.leg)):
+        a, b = ex.leg[k - 1], ex.leg[k]
+        cost = math.dist(a[:2], b[:2]) + rotation_terms(a[:2], a[2], b[:2], b[2]) @ true.as_array()
+        ex.time += cost / ex.control.v_max
+        ex._edge_done(k)
+    assert ex.weight_fits >= 1
+    assert ex.weights.w1 == pytest.approx(0.3, abs=1e-9) and ex.weights.w2 == pytest.approx(0.2, abs=1e-9)
+    nm = ex.planner.navmap
+    for (a, b), tree in ex._pair.items():
+        if not isinstance(tree, Exception):
+            best = min(nm.cost(u, v) for u in nm.region_nodes(a) for v in nm.region_nodes(b))
+            assert best == pytest.approx(tree.recost(ex.weights), rel=1e-12)
+
+
+def test_rotation_weights_refit_during_a_mission():
+    """In closed loop (cluttered20) the weights are refitted from the measured edges, stay in
+    their bounds, and equal the least-squares fit over the recorded edges."""
+    import numpy as np
+
+    from tamp.harmonic_tree import RotationWeights
+
+    runs = []
+
+    class Recording(Executive):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            runs.append(self)
+
+    _check_run(run_mission(shared_world("cluttered20"), max_time=300, executive_cls=Recording))
+    ex = runs[0]
+    lo, hi = ex.config.weight_bounds
+    assert ex.weight_fits >= 1 and len(ex._edges_d) >= ex.config.refit_min_edges
+    fit = RotationWeights.fit(ex._edges_d, np.array(ex._edges_q), ex._edges_cost)
+    assert (ex.weights.w1, ex.weights.w2) == pytest.approx((min(max(fit.w1, lo), hi), min(max(fit.w2, lo), hi)))
+
+
 # ---------------------------------------------------------------------- bad input
 def test_bad_poses_stop_the_robot_and_recover():
     world = shared_world("simple")
