@@ -740,12 +740,10 @@ def _thin_centers(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, sgn: np
     f0 = -depth_j(rows, _xy(PI, psi0[:, None]))[:, 0]
     psi, f = _pattern_min(lambda r, ps: -depth_j(r, _xy(PI[r], ps[..., 0])), psi0[:, None], w0[:, None], f0,
                           m=9, shrink=0.3, tol=1e-10)
-    a = _xy(PI, psi[:, 0])
+    a, da, _ = boundary_jet_rows(PI, psi[:, 0])
     span = np.maximum(-f, 0.0)
-    eps = 1e-7
-    normal = np.stack([_beta(PI, (a + [eps, 0.0])[:, None])[:, 0] - _beta(PI, (a - [eps, 0.0])[:, None])[:, 0],
-                       _beta(PI, (a + [0.0, eps])[:, None])[:, 0] - _beta(PI, (a - [0.0, eps])[:, None])[:, 0]], 1)
-    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+    # outward normal: the (counter-clockwise) tangent turned clockwise, exact
+    normal = np.stack((da[:, 1], -da[:, 0]), axis=1) / np.linalg.norm(da, axis=1, keepdims=True)
     start = a - 0.5 * span[:, None] * normal
 
     def objective(r, q):
