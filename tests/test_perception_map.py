@@ -130,3 +130,23 @@ def test_updates_report_changes():
         seen -= set(upd.removed)
         assert seen == set(omap.estimates)
     assert seen and omap.to_message()["obstacles"]
+
+
+def test_boundary_returns_are_dropped_by_distance():
+    """Returns within ``ws_band`` of the workspace boundary (by distance, not by the radial
+    error, which off the workspace's axes exceeds the distance by up to ``|q - c| / b``) are the
+    boundary; returns farther in are obstacles."""
+    world = shared_world("office")
+    ws = world.workspace
+    omap = ObstacleMap.from_world(world, noise_std=0.01)  # ws_band = 0.04 m
+    b = ws.boundary_points(2048)
+    b = b[(b[:, 0] > 5.3) & (b[:, 0] < 5.8) & (b[:, 1] > 3.5)]  # top wall, off its axis
+    n = ws.gradient(b)
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    near = b - 0.035 * n  # 3.5 cm inside (radial error about 5 cm)
+    assert np.all(np.abs(ws.distance(near) + 0.035) < 2e-3)
+    upd = omap.update_points({"stamp": 0.0, "points": near.tolist()}, (5.5, 3.0, 0.0))
+    assert upd.points == 0 and len(omap) == 0
+    inner = b - 0.3 * n  # 30 cm inside: an obstacle
+    upd = omap.update_points({"stamp": 0.1, "points": inner.tolist()}, (5.5, 3.0, 0.0))
+    assert upd.points == len(inner) and len(omap) >= 1
