@@ -76,8 +76,8 @@ from scipy.spatial import cKDTree
 
 from ._memo import Memo
 from .errors import ForestError
-from .geometry import (COS, CX, CY, HH, HW, S, SIN, Squircle, boundary_jet_rows, clear_geometry_cache, pack,
-                       ray_length_packed, signed_distance_rows)
+from .geometry import (COS, CX, CY, HH, HW, S, SIN, Squircle, beta_gradient_rows, boundary_jet_rows,
+                       clear_geometry_cache, pack, ray_length_packed, signed_distance_rows)
 
 __all__ = ["WORKSPACE", "NO_PARENT", "Forest", "build_forest", "separation", "common_center", "clear_cache"]
 
@@ -508,10 +508,8 @@ def _extreme_beta(body: _Body, other_row: np.ndarray, sign: float, vals: np.ndar
     v = sign * vals
     a = int(np.argmin(v))
     P = other_row[None, :]
-    eps = 1e-6
-    grad = np.hypot(_beta(P, (body.pts + [eps, 0.0])[None])[0] - _beta(P, (body.pts - [eps, 0.0])[None])[0],
-                    _beta(P, (body.pts + [0.0, eps])[None])[0] - _beta(P, (body.pts - [0.0, eps])[None])[0]) / (2 * eps)
-    if abs(v[a]) > 2.0 * body.spacing * float(grad.max()) + 1e-12:
+    grad = np.hypot(*beta_gradient_rows(other_row, body.pts[:, 0], body.pts[:, 1]))
+    if abs(v[a]) > 2.0 * body.spacing * float(grad.max()) + 1e-12:  # NaN (a centre on it): refine
         return float(sign * v[a])
     Pb = body.row[None, :]
 

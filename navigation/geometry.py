@@ -711,6 +711,14 @@ def ray_length_packed(p: np.ndarray, o: np.ndarray, d: np.ndarray, entry: np.nda
     return r
 
 
+def beta_gradient_rows(P: np.ndarray, qx: np.ndarray, qy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Exact gradient ``(b_x, b_y)`` of ``beta`` of rows ``P (..., 7)`` at ``(qx, qy)``
+    (broadcasting; not defined at a squircle's centre, where it is NaN)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        _, bx, by, *_ = _beta_derivatives(P, qx, qy)
+    return bx, by
+
+
 def _beta_derivatives(p: np.ndarray, qx: np.ndarray, qy: np.ndarray):
     """``beta`` at points ``(qx, qy)`` with its exact gradient and packed Hessian in ``q``.
 

@@ -252,3 +252,21 @@ class TestSquircleErrors:
         sq = Squircle.from_dict(self.good)
         assert (sq.theta, sq.s) == (0.0, 0.99)
         assert Squircle.from_dict(sq.to_dict()) == sq
+
+
+def test_beta_gradient_rows_matches_central_differences():
+    """The packed-row gradient used by the forest build against central differences."""
+    from navigation.geometry import beta_gradient_rows, beta_rows
+
+    rng = np.random.default_rng(11)
+    for _ in range(20):
+        sq = Squircle(tuple(rng.uniform(-1, 1, 2)), rng.uniform(0.1, 3), rng.uniform(0.1, 3), rng.uniform(0, 3),
+                      float(rng.choice([0.0, 0.5, 0.99])))
+        P = sq.packed()
+        q = sq.c + rng.normal(size=(50, 2))
+        gx, gy = beta_gradient_rows(P, q[:, 0], q[:, 1])
+        h = 1e-6
+        fx = (beta_rows(P, q[:, 0] + h, q[:, 1]) - beta_rows(P, q[:, 0] - h, q[:, 1])) / (2 * h)
+        fy = (beta_rows(P, q[:, 0], q[:, 1] + h) - beta_rows(P, q[:, 0], q[:, 1] - h)) / (2 * h)
+        scale = np.maximum(np.hypot(fx, fy), 1.0)
+        assert np.all(np.abs(gx - fx) <= 1e-5 * scale) and np.all(np.abs(gy - fy) <= 1e-5 * scale)
