@@ -77,7 +77,8 @@ from scipy.spatial import cKDTree
 from ._memo import Memo
 from .errors import ForestError
 from .geometry import (COS, CX, CY, HH, HW, S, SIN, Squircle, beta_gradient_rows, boundary_jet_rows,
-                       clear_geometry_cache, pack, ray_length_packed, signed_distance_rows)
+                       clear_geometry_cache, pack, point_at_rows, ray_length_packed,
+                       signed_distance_rows)
 
 __all__ = ["WORKSPACE", "NO_PARENT", "Forest", "build_forest", "separation", "common_center", "clear_cache"]
 
@@ -241,19 +242,9 @@ def _cols(P: np.ndarray, ndim: int) -> np.ndarray:
 
 
 def _xy(P: np.ndarray, psi: np.ndarray) -> np.ndarray:
-    """Boundary points ``(K, ..., 2)`` of packed squircles ``P (K, 7)`` at angles ``psi (K, ...)``.
-
-    Same parametrisation as :meth:`Squircle.point_at`.
-    """
-    C = _cols(P, psi.ndim)
-    ux, uy = np.cos(psi), np.sin(psi)
-    m = ux * uy
-    s = C[S]
-    rho = np.sqrt(2.0 / (1.0 + np.sqrt(np.maximum(1.0 - 4.0 * s * s * m * m, 0.0))))
-    lx = rho * ux * C[HW]
-    ly = rho * uy * C[HH]
-    c, sn = C[COS], C[SIN]
-    return np.stack((C[CX] + c * lx - sn * ly, C[CY] + sn * lx + c * ly), axis=-1)
+    """Boundary points ``(K, ..., 2)`` of packed squircles ``P (K, 7)`` at angles ``psi (K, ...)``:
+    :func:`~navigation.geometry.point_at_rows`."""
+    return point_at_rows(P, psi)
 
 
 def _beta(P: np.ndarray, q: np.ndarray) -> np.ndarray:

@@ -346,21 +346,22 @@ def _area(sq: Squircle) -> float:
 
 
 def point_at_rows(P: np.ndarray, psi: np.ndarray) -> np.ndarray:
-    """Boundary points ``(K, m, 2)`` of rows ``P (K, 7)`` at normalised angles ``psi (K, m)``
+    """Boundary points ``(K, ..., 2)`` of rows ``P (K, 7)`` at normalised angles ``psi (K, ...)``
     (the parametrisation of :meth:`Squircle.point_at`)."""
     return np.stack(_point_xy_rows(P, psi), axis=-1)
 
 
 def _point_xy_rows(P: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Coordinates ``x, y (K, m)`` of :func:`point_at_rows`."""
+    """Coordinates ``x, y (K, ...)`` of :func:`point_at_rows`."""
+    C = P.T.reshape((7, -1) + (1,) * (psi.ndim - 1))
     ux, uy = np.cos(psi), np.sin(psi)
     m = ux * uy
-    s2 = (P[:, S] ** 2)[:, None]
-    rho = np.sqrt(2.0 / (1.0 + np.sqrt(np.maximum(1.0 - 4.0 * s2 * m * m, 0.0))))
-    lx = rho * ux * P[:, HW, None]
-    ly = rho * uy * P[:, HH, None]
-    c, sn = P[:, COS, None], P[:, SIN, None]
-    return P[:, CX, None] + c * lx - sn * ly, P[:, CY, None] + sn * lx + c * ly
+    s = C[S]
+    rho = np.sqrt(2.0 / (1.0 + np.sqrt(np.maximum(1.0 - 4.0 * s * s * m * m, 0.0))))
+    lx = rho * ux * C[HW]
+    ly = rho * uy * C[HH]
+    c, sn = C[COS], C[SIN]
+    return C[CX] + c * lx - sn * ly, C[CY] + sn * lx + c * ly
 
 
 def boundary_jet_rows(P: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
