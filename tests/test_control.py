@@ -183,3 +183,40 @@ def test_clearance_exact_matches_squircle_distances(name):
     for q in np.asarray(ws.center) + rng.uniform(-0.5, 0.5, size=(25, 2)) * (ws.width, ws.height):
         ref = min([-float(ws.distance(q))] + [float(o.distance(q)) for o in forest.obstacles])
         assert bound.exact(q) == pytest.approx(ref, abs=2e-9)
+
+
+@pytest.mark.parametrize("name", ["simple", "office"])
+def test_push_forward_direction_gradient_matches_finite_differences(name):
+    """``OrientedEval.flow_gradient`` (used by the feed-forward with ``push_forward``) is the
+    exact gradient of ``flow_angle``."""
+    world = shared_world(name)
+    r = world.robot.radius
+    rng = np.random.default_rng(3)
+    goal = random_free_points(world, 1, rng, margin=r + 0.2)[0]
+    field = OrientedField(navigation.NavigationFunction(world, goal=goal, inflation=r),
+                          heading=rng.uniform(-np.pi, np.pi))
+    pts = random_free_points(world, 300, rng, margin=r + 0.01)
+    ev = field.evaluate(pts)
+    h = 1e-6
+    fd = np.stack([wrap_angle(field.evaluate(pts + e).flow_angle - field.evaluate(pts - e).flow_angle) / (2 * h)
+                   for e in np.eye(2) * h], axis=1)
+    scale = np.linalg.norm(ev.flow_gradient, axis=1) + 1e-9
+    err = np.linalg.norm(fd - ev.flow_gradient, axis=1) / scale
+    smooth = ~ev.degenerate & (err < 1e-3)  # within h of a critical point the angle jumps
+    assert smooth.mean() > 0.97, f"too many non-smooth points: {1 - smooth.mean():.3f}"
+    assert np.median(err) < 1e-6
+    assert np.all(err[smooth] < 1e-4), f"max relative error {err[smooth].max():.2e}"
+
+
+def test_push_forward_descends_the_oriented_potential():
+    """The push-forward direction is a descent direction of ``phi_ONF`` wherever the field is
+    regular (its integral curves are preimages of the point world's gradient curves)."""
+    world = shared_world("office")
+    r = world.robot.radius
+    field = OrientedField(navigation.NavigationFunction(world, goal=(6.4, 3.3), inflation=r), heading=0.4)
+    pts = random_free_points(world, 300, np.random.default_rng(8), margin=r + 0.005)
+    ev = field.evaluate(pts)
+    ok = ~ev.degenerate & ev.free
+    d = np.stack([np.cos(ev.flow_angle), np.sin(ev.flow_angle)], axis=1)
+    # grad phi_ONF = -Upsilon
+    assert np.all(np.einsum("ni,ni->n", d[ok], ev.field[ok]) > 0)
