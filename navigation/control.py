@@ -1,7 +1,7 @@
 """Smooth harmonic-tracking unicycle controller (paper 001 section 4.1.3, eq. 24-25).
 
 For a pose ``(q, theta)`` and an :class:`~navigation.oriented.OrientedField` with goal pose
-``(q_G, theta_G)`` (direction ``theta_gamma(q)`` of ``Upsilon``):
+``(q_G, theta_G)`` (direction ``theta_gamma(q)`` of the tracked field):
 
 .. math::
 
@@ -21,28 +21,49 @@ Choices where the paper is silent or loose, and why:
   error; with a saturated ``omega`` the robot can then drive along its old heading into an
   obstacle. We multiply by ``max(0, cos(theta - theta_gamma))`` (``ControllerConfig.heading_gate``):
   the robot turns in place when it faces away from the field and otherwise moves with a
-  positive component along ``Upsilon``. At the goal it still converges, since
+  positive component along it. At the goal it still converges, since
   ``theta_gamma -> theta_G`` along the arrival direction.
-* **Switch of eq. 25.** ``u = u(q, q_n) + eta(gamma_n)(u(q, q_{n+1}) - u(q, q_n))`` with
-  ``gamma_n = |q - q_n|`` and ``eta(gamma) = (1 + tanh(k_s (eps - gamma) / eps)) / 2``: the
-  paper's ``eta_eps`` normalised by the margin so that ``k_s = 2``, ``eps = 0.1`` m (section 5.1)
-  give a switch that is 0.02 at ``2 eps``, 1/2 at ``eps`` and 0.98 at the waypoint (taken
-  literally with ``k_s = 2`` 1/m the switch would only reach 0.6 at the waypoint).
-  Commands are blended before saturation, so they are continuous in the pose.
+* **Which direction is tracked** (``ControllerConfig.push_forward``, default off). By default
+  ``theta_gamma`` is the direction of ``Upsilon = -grad phi_ONF`` (eq. 23). Where the
+  navigation transformation is strongly anisotropic (singular values of ``dPhi/dq`` 50 to 1 and
+  more, inside free space on every shared world) that gradient is pinned to ``+-`` the major
+  singular direction and flips across thin folds: ``|grad theta_gamma|`` of 10^2-10^4 rad/m
+  (measured). At ``dt = 0.1`` s the feed-forward of (24b) then acts as a heading feedback of
+  gain ``v |grad theta_gamma|`` far above the sampled-data limit ``2 / dt`` and ``omega``
+  alternates between ``+-omega_max`` every period: this is the turn-rate chatter the benchmarks
+  flag (docs/control.md, "Turn-rate chatter"). With ``push_forward=True`` the controller tracks
+  instead the direction of the push-forward flow ``-(dx'/dq)^(-1) grad_x' phi_O``
+  (:attr:`OrientedEval.flow_angle`): its integral curves are the preimages of the point world's
+  gradient curves, so it descends ``phi_ONF`` everywhere, keeps the goal, the saddles and the
+  arrival heading, and has no folds; within ``boundary_blend`` of a grown boundary (where it
+  turns tangential and the safety limit would pin the robot) it is blended smoothly into
+  ``Upsilon``'s direction, which points out of the boundary there.
+* **Switch of eq. 25.** ``eta(gamma_n) = (1 + tanh(k_s (eps - gamma_n) / eps)) / 2`` with
+  ``gamma_n = |q - q_n|``: the paper's ``eta_eps`` normalised by the margin so that ``k_s = 2``,
+  ``eps = 0.1`` m (section 5.1) give a switch that is 0.02 at ``2 eps``, 1/2 at ``eps`` and 0.98
+  at the waypoint (taken literally with ``k_s = 2`` 1/m the switch would only reach 0.6 at the
+  waypoint). Eq. 25 blends the *commands* ``u = (v, omega)`` of the two waypoints; we blend
+  their *directions* instead, ``b = (1 - eta) u_n + eta u_{n+1}`` (unit vectors), and the speed
+  factors ``tanh |q - q_n|``, ``tanh |q - q_{n+1}|``, and apply eq. 24 once to ``atan2(b)``
+  (its gradient exact, the switch's own gradient included). Blending ``omega`` computed from
+  two wrapped heading errors has spurious equilibria (the blend cancels with both ``v`` gated
+  to zero when the robot faces away from both directions: the waypoint-continuity test stopped
+  0.097 m from its waypoint) and jumps by ``2 pi k_omega eta`` when one error wraps at
+  ``+-pi``.
 * **Safety limit (not in the paper).** With commands held for a control period ``dt``, a
   saturated ``omega`` and a 5 cm step can carry the robot across the thin layer next to an
   (inflated) boundary in which the field turns away, before the field has turned it. We cap
   ``v <= d(q) / safety_horizon`` where ``d(q)`` is a certified lower bound on the distance from
   ``q`` to the field's obstacles and workspace boundary (:attr:`OrientedField.clearance`; those
-  obstacles are grown by the robot radius). If ``dt <= safety_horizon`` (default 0.1 s, the
-  paper's control period), a step moves the robot by at most ``v dt <= d(q)``, so the robot
-  stays in the grown free space and its disc never touches an obstacle, whatever the field
-  does. The cap is continuous in the pose and only acts within ``v_max * safety_horizon``
-  (5 cm at 0.5 m/s) of a grown boundary. It is applied to ``v`` before ``v`` enters the
-  feed-forward term of (24b): a robot held still must not turn by the amount the field would
-  rotate under a motion it does not make. ``safety_horizon=0`` disables it. (A horizon of
-  0.2 s, moving at most half the clearance per step, gave the same success but more turn-rate
-  oscillation, measured with ``benchmarks.control``.)
+  obstacles are grown by the robot radius; the smaller of the two waypoints' bounds during a
+  switch). If ``dt <= safety_horizon`` (default 0.1 s, the paper's control period), a step
+  moves the robot by at most ``v dt <= d(q)``, so the robot stays in the grown free space and
+  its disc never touches an obstacle, whatever the field does. The cap is continuous in the
+  pose and only acts within ``v_max * safety_horizon`` (5 cm at 0.5 m/s) of a grown boundary.
+  It is applied to ``v`` before ``v`` enters the feed-forward term of (24b): a robot held still
+  must not turn by the amount the field would rotate under a motion it does not make.
+  ``safety_horizon=0`` disables it. The guarantee is relative to the obstacles the field was
+  built on: estimates that lie inside the true obstacles leave the robot that much less margin.
 * **Outside free space or degenerate field.** The oriented field's outside contract gives a
   unit vector back into free space: the controller turns towards it and only moves once it
   faces it (heading gate). At the goal itself ``theta_gamma = theta_G``. Non-finite poses raise
@@ -82,6 +103,12 @@ class ControllerConfig:
     safety_horizon : float
         Cap ``v <= clearance / safety_horizon`` (s; 0.1, the paper's control period; 0 turns
         the cap off). Safe for control periods up to ``safety_horizon`` (see the module doc).
+    push_forward : bool
+        Track the push-forward flow direction of the oriented potential instead of the
+        direction of its gradient (see the module doc; off by default).
+    boundary_blend : float
+        With ``push_forward``: distance (m) to a grown boundary below which the tracked
+        direction is blended into the gradient direction (smoothstep in the certified clearance).
     """
 
     k_v: float = 1.0
@@ -92,12 +119,18 @@ class ControllerConfig:
     switch_margin: float = 0.1
     heading_gate: bool = True
     safety_horizon: float = 0.1
+    push_forward: bool = False
+    boundary_blend: float = 0.005
 
     def __post_init__(self):
         for name in ("k_v", "k_omega", "v_max", "omega_max", "k_switch", "switch_margin"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise NavigationError(f"ControllerConfig.{name} must be a positive finite number, got {value!r}")
+        for name in ("safety_horizon", "boundary_blend"):
+            h = getattr(self, name)
+            if not (isinstance(h, (int, float)) and math.isfinite(h) and h >= 0):
+                raise NavigationError(f"ControllerConfig.{name} must be a finite number >= 0, got {h!r}")
         h = self.safety_horizon
         if not (isinstance(h, (int, float)) and math.isfinite(h) and h >= 0):
             raise NavigationError(f"ControllerConfig.safety_horizon must be a finite number >= 0, got {h!r}")
@@ -117,7 +150,7 @@ class Command:
     v, omega : float
         Saturated command.
     theta_gamma : float
-        Direction of the (current waypoint's) field at the pose.
+        Direction tracked at the pose (the blend of eq. 25 during a waypoint switch).
     clipped : bool
         Saturation (or the safety limit) changed the raw command.
     """
@@ -138,26 +171,83 @@ def _pose(pose) -> tuple[np.ndarray, float]:
     return p[:2], float(p[2])
 
 
-def _raw(q: np.ndarray, theta: float, field: OrientedField, cfg: ControllerConfig):
-    """Eq. 24 with ``v`` limited before it enters the feed-forward term of ``omega``."""
+def _unit_blend(t0: float, g0: np.ndarray, t1: float, g1: np.ndarray, w: float, grad_w: np.ndarray):
+    """Direction of ``b = (1 - w) u(t0) + w u(t1)`` and its gradient, given the gradients
+    ``g0``, ``g1`` of ``t0``, ``t1`` and ``grad_w`` of ``w``; ``None`` when ``b`` vanishes."""
+    u0 = np.array([math.cos(t0), math.sin(t0)])
+    u1 = np.array([math.cos(t1), math.sin(t1)])
+    b = (1.0 - w) * u0 + w * u1
+    nb2 = float(b @ b)
+    if not nb2 > 1e-12:
+        return None
+    jb = ((1.0 - w) * np.outer((-u0[1], u0[0]), g0) + w * np.outer((-u1[1], u1[0]), g1)
+          + np.outer(u1 - u0, grad_w))
+    return math.atan2(b[1], b[0]), (b[0] * jb[1] - b[1] * jb[0]) / nb2
+
+
+def _direction(q: np.ndarray, field: OrientedField, cfg: ControllerConfig):
+    """``(theta_gamma, grad theta_gamma, tanh |q - q_G|)`` of one field: the gradient direction,
+    or with ``cfg.push_forward`` the push-forward direction blended into it next to boundaries."""
     ev = field.evaluate(q)
-    tg = float(ev.angle)
+    speed = math.tanh(float(np.linalg.norm(q - field.goal)))
+    tg, grad = float(ev.angle), np.asarray(ev.angle_gradient, dtype=float)
+    if not cfg.push_forward:
+        return tg, grad, speed
+    tf, gf = float(ev.flow_angle), np.asarray(ev.flow_gradient, dtype=float)
+    delta = cfg.boundary_blend
+    c = float(field.clearance(q, delta)) if delta > 0 else delta
+    if c >= delta:
+        return tf, gf, speed
+    # smoothstep weight of the gradient direction; the clearance bound has no exact gradient,
+    # so the weight is treated as locally constant in the feed-forward (only within delta)
+    t = 1.0 - c / delta
+    out = _unit_blend(tf, gf, tg, grad, t * t * (3.0 - 2.0 * t), np.zeros(2))
+    return (tg, grad, speed) if out is None else (*out, speed)
+
+
+def _blend(q: np.ndarray, current: OrientedField, following: OrientedField, cfg: ControllerConfig):
+    """Eq. 25 on directions (see the module doc): direction of ``(1 - eta) u_n + eta u_{n+1}``,
+    its exact gradient (the switch's gradient included) and the blended speed factor."""
+    t0, g0, s0 = _direction(q, current, cfg)
+    diff = q - current.goal
+    gamma = float(np.linalg.norm(diff))
+    eta = switch_weight(gamma, cfg)
+    if eta <= 0.0:
+        return t0, g0, s0
+    t1, g1, s1 = _direction(q, following, cfg)
+    eps = cfg.switch_margin
+    th = math.tanh(cfg.k_switch * (eps - gamma) / eps)
+    grad_eta = (-0.5 * cfg.k_switch / eps * (1.0 - th * th)) * diff / gamma if gamma > 0 else np.zeros(2)
+    speed = (1.0 - eta) * s0 + eta * s1
+    out = _unit_blend(t0, g0, t1, g1, eta, grad_eta)
+    if out is None:  # opposite directions at eta = 1/2 (measure zero): the dominant waypoint's
+        return (t1, g1, speed) if eta > 0.5 else (t0, g0, speed)
+    return (*out, speed)
+
+
+def _command(theta: float, tg: float, grad: np.ndarray, speed: float, clearance: float,
+             cfg: ControllerConfig) -> Command:
+    """Eq. 24 on the direction ``tg`` (gradient ``grad``): heading gate, saturation and safety
+    limit applied to ``v`` before it enters the feed-forward term, then ``omega``."""
     err = wrap_angle(theta - tg)
-    v = cfg.k_v * math.tanh(float(np.linalg.norm(q - field.goal)))
+    v = cfg.k_v * speed
     if cfg.heading_gate:
         v *= max(0.0, math.cos(err))
     raw = v
     v = min(v, cfg.v_max)
     if cfg.safety_horizon > 0 and v > 0.0:
-        v = min(v, float(field.clearance(q, cfg.v_max * cfg.safety_horizon)) / cfg.safety_horizon)
-    ff = float(np.dot(ev.angle_gradient, (math.cos(theta), math.sin(theta))))
+        v = min(v, clearance / cfg.safety_horizon)
+    ff = grad[0] * math.cos(theta) + grad[1] * math.sin(theta)
     omega = -cfg.k_omega * err + v * ff
-    return v, omega, tg, v != raw
-
-
-def _saturate(v: float, omega: float, cfg: ControllerConfig):
     ws = min(max(omega, -cfg.omega_max), cfg.omega_max)
-    return v, ws, ws != omega
+    return Command(v, ws, tg, ws != omega or v != raw)
+
+
+def _clearance(q: np.ndarray, fields, cfg: ControllerConfig) -> float:
+    if cfg.safety_horizon <= 0:
+        return math.inf
+    cap = cfg.v_max * cfg.safety_horizon
+    return min(float(f.clearance(q, cap)) for f in fields)
 
 
 def track(pose, field: OrientedField, config: ControllerConfig = ControllerConfig()) -> Command:
@@ -169,9 +259,8 @@ def track(pose, field: OrientedField, config: ControllerConfig = ControllerConfi
         Non-finite or malformed pose.
     """
     q, theta = _pose(pose)
-    v, omega, tg, limited = _raw(q, theta, field, config)
-    v, omega, clipped = _saturate(v, omega, config)
-    return Command(v, omega, tg, clipped or limited)
+    tg, grad, speed = _direction(q, field, config)
+    return _command(theta, tg, grad, speed, _clearance(q, (field,), config), config)
 
 
 def switch_weight(distance: float, config: ControllerConfig = ControllerConfig()) -> float:
@@ -182,19 +271,12 @@ def switch_weight(distance: float, config: ControllerConfig = ControllerConfig()
 
 def track_waypoints(pose, current: OrientedField, following: OrientedField | None = None,
                     config: ControllerConfig = ControllerConfig()) -> Command:
-    """Eq. 25: blend of the commands towards ``current`` and ``following`` waypoints.
+    """Eq. 25: track the blend of the current and following waypoints' fields.
 
     With ``following=None`` this is :func:`track` towards ``current``.
     """
     q, theta = _pose(pose)
-    v0, w0, tg, limited = _raw(q, theta, current, config)
-    if following is not None:
-        eta = switch_weight(float(np.linalg.norm(q - current.goal)), config)
-        if eta > 0.0:
-            v1, w1, tg1, limited1 = _raw(q, theta, following, config)
-            limited = limited or limited1
-            v0, w0 = v0 + eta * (v1 - v0), w0 + eta * (w1 - w0)
-            if eta > 0.5:
-                tg = tg1
-    v, omega, clipped = _saturate(v0, w0, config)
-    return Command(v, omega, tg, clipped or limited)
+    if following is None:
+        return track(pose, current, config)
+    tg, grad, speed = _blend(q, current, following, config)
+    return _command(theta, tg, grad, speed, _clearance(q, (current, following), config), config)
