@@ -3,6 +3,7 @@
 Run from the repository root::
 
     python -m benchmarks.control [--quick] [--out benchmarks/results] [--starts 10] [--goals 2] [--random 5] [--jobs 1]
+                                 [--push-forward]
 
 For each world (``simple``, ``office`` with all obstacles known, and random forest worlds from
 ``tests.worldgen`` with ``gap=0.3`` so that they stay forests in the robot's configuration
@@ -14,7 +15,11 @@ the robot radius, in :class:`service.sim.Simulator` (dt = 0.1 s, noise-free), fo
 Reported per world: success rate, collisions, minimum clearance (exact, robot disc to the true
 obstacles), mean path length and time to goal of the successful runs, and two oscillation
 measures: sign changes of the commanded turn rate per metre travelled (|omega| > 0.05 rad/s)
-and integrated absolute curvature ``sum |omega| dt`` over moving steps (rad). Also the median
+integrated absolute curvature ``sum |omega| dt`` over moving steps (rad), and the evaluation
+suite's chatter (:func:`benchmarks.methods.chatter`: sign flips of the executed turn rate between
+consecutive periods, both above 0.05 rad/s, per metre; a run is *flagged* above 1/m) with the
+count of flagged runs. ``--push-forward`` runs the controller with
+``ControllerConfig(push_forward=True)`` (docs/control.md). Also the median
 time of one controller step (field, Jacobian, command) with its target <= 2 ms.
 Results: ``<out>/control.json`` and ``<out>/control.md`` (also printed); progress on stderr.
 """
@@ -35,18 +40,20 @@ from navigation.control import ControllerConfig, track
 from navigation.oriented import OrientedField, wrap_angle
 from service.sim import Simulator
 from benchmarks._common import log, machine_info, write_results
+from benchmarks.methods import chatter
 from tests.worldgen import random_forest_world, random_free_points
 
 __all__ = ["main", "run", "render_markdown", "STEP_TARGET"]
 
 STEP_TARGET = 2e-3
 POS_TOL, HEADING_TOL, MAX_TIME = 0.05, 0.1, 120.0
+CHATTER_FLAG = 1.0  #: chatter per metre above which a run is flagged (as in benchmarks.evaluation)
 
 
 
 def _episode(world, field, start, cfg) -> dict:
     sim = Simulator(world, seed=0, pose=start)
-    omegas, step_times = [], []
+    omegas, step_times, poses = [], [], []
     reached = False
     for _ in range(int(MAX_TIME / sim.dt)):
         x, y, th = sim.pose
@@ -56,6 +63,7 @@ def _episode(world, field, start, cfg) -> dict:
         t0 = time.perf_counter()
         cmd = track((x, y, th), field, cfg)
         step_times.append(time.perf_counter() - t0)
+        poses.append((x, y, th))
         result = sim.step((cmd.v, cmd.omega))
         omegas.append((cmd.v, cmd.omega))
         if result.collision is not None:
@@ -64,9 +72,10 @@ def _episode(world, field, start, cfg) -> dict:
     signs = [np.sign(w) for v, w in omegas if abs(w) > 0.05]
     flips = sum(1 for a, b in zip(signs, signs[1:]) if a != b)
     curvature = sum(abs(w) * sim.dt for v, w in omegas if v > 1e-3)
+    poses.append(tuple(sim.pose))
     return {"reached": reached, "collisions": len(m.collisions), "min_clearance": float(m.min_clearance),
             "distance": float(m.distance), "time": float(sim.time), "flips_per_m": flips / max(m.distance, 1e-9),
-            "curvature": float(curvature), "step_times": step_times}
+            "curvature": float(curvature), "chatter": chatter(poses, sim.dt), "step_times": step_times}
 
 
 def _worlds(n_random: int):
@@ -77,11 +86,11 @@ def _worlds(n_random: int):
 
 
 def _world_row(job) -> dict:
-    """Closed-loop runs of one world: ``job = (name, world, starts, goals)``."""
-    name, world, starts, goals = job
+    """Closed-loop runs of one world: ``job = (name, world, starts, goals, push_forward)``."""
+    name, world, starts, goals, push_forward = job
     rng = np.random.default_rng(0)
     r = world.robot.radius
-    cfg = ControllerConfig.from_robot(world.robot)
+    cfg = ControllerConfig.from_robot(world.robot, push_forward=push_forward)
     eps, times = [], []
     for g in range(goals):
         goal = random_free_points(world, 1, rng, margin=r + 0.2)[0]
@@ -100,6 +109,8 @@ def _world_row(job) -> dict:
         "mean_time": statistics.fmean(e["time"] for e in ok) if ok else None,
         "flips_per_m": statistics.fmean(e["flips_per_m"] for e in eps),
         "curvature": statistics.fmean(e["curvature"] for e in eps),
+        "chatter": statistics.fmean(e["chatter"] for e in eps),
+        "flagged": sum(e["chatter"] > CHATTER_FLAG for e in eps),
         "step_median": statistics.median(times), "step_pass": statistics.median(times) <= STEP_TARGET,
     }
     log(f"[bench] {name}: {row['reached']}/{row['runs']} reached, {row['collisions']} collisions")
@@ -119,14 +130,17 @@ def _total(rows: list[dict]) -> dict:
             "collisions": sum(r["collisions"] for r in rows), "min_clearance": min(r["min_clearance"] for r in rows),
             "mean_distance": mean("mean_distance", "reached"), "mean_time": mean("mean_time", "reached"),
             "flips_per_m": mean("flips_per_m", "runs"), "curvature": mean("curvature", "runs"),
+            "chatter": mean("chatter", "runs"), "flagged": sum(r["flagged"] for r in rows),
             "step_median": statistics.median(r["step_median"] for r in rows),
             "step_pass": all(r["step_pass"] for r in rows)}
 
 
-def run(*, quick: bool = False, starts: int = 10, goals: int = 2, n_random: int = 5, jobs: int = 1) -> dict:
+def run(*, quick: bool = False, starts: int = 10, goals: int = 2, n_random: int = 5, jobs: int = 1,
+        push_forward: bool = False) -> dict:
     if quick:
         starts, goals, n_random = 2, 1, 0
-    work = [(name, world, starts, goals) for name, world in _worlds(n_random) if not quick or name == "simple"]
+    work = [(name, world, starts, goals, push_forward) for name, world in _worlds(n_random)
+            if not quick or name == "simple"]
     if jobs > 1:
         from concurrent.futures import ProcessPoolExecutor
         with ProcessPoolExecutor(max_workers=jobs) as pool:
@@ -134,7 +148,8 @@ def run(*, quick: bool = False, starts: int = 10, goals: int = 2, n_random: int 
     else:
         rows = [_world_row(job) for job in work]
     rows.append(_total(rows))
-    return {"benchmark": "control", "quick": quick, "settings": {"starts": starts, "goals": goals, "random": n_random},
+    return {"benchmark": "control", "quick": quick,
+            "settings": {"starts": starts, "goals": goals, "random": n_random, "push_forward": push_forward},
             "tolerances": {"position": POS_TOL, "heading": HEADING_TOL, "max_time": MAX_TIME},
             "step_target": STEP_TARGET, "worlds": rows,
             "machine": machine_info()}
@@ -145,17 +160,23 @@ def _f(x, fmt: str) -> str:
 
 
 def render_markdown(result: dict) -> str:
+    st = result["settings"]
+    cmd = ("python -m benchmarks.control" + (" --quick" if result["quick"] else
+                                             f" --starts {st['starts']} --goals {st['goals']} --random {st['random']}")
+           + (" --push-forward" if st.get("push_forward") else ""))
     lines = ["# Closed-loop controller benchmark", "",
-             f"`python -m benchmarks.control{' --quick' if result['quick'] else ''}` "
+             f"`{cmd}` "
              f"(Python {result['machine']['python']}, {result['machine']['cpus']} CPUs). Goal pose reached: "
              f"within {POS_TOL} m and {HEADING_TOL} rad; dt = 0.1 s; obstacles grown by the robot radius.", "",
              "| world | obstacles | reached | collisions | min clearance (m) | mean path (m) | mean time (s) "
-             "| turn-sign flips / m | integrated abs curvature (rad) | controller step (ms) | <= 2 ms |",
-             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|:---:|"]
+             "| turn-sign flips / m | integrated abs curvature (rad) | chatter / m | flagged (> 1/m) "
+             "| controller step (ms) | <= 2 ms |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|:---:|"]
     for r in result["worlds"]:
         lines.append(f"| {r['world']} | {_f(r['n_obstacles'], 'd')} | {r['reached']}/{r['runs']} | {r['collisions']} | "
                      f"{r['min_clearance']:.4f} | {_f(r['mean_distance'], '.2f')} | {_f(r['mean_time'], '.1f')} | "
-                     f"{r['flips_per_m']:.2f} | {r['curvature']:.2f} | {r['step_median'] * 1e3:.2f} | "
+                     f"{r['flips_per_m']:.2f} | {r['curvature']:.2f} | {r['chatter']:.2f} | {r['flagged']}/{r['runs']} | "
+                     f"{r['step_median'] * 1e3:.2f} | "
                      f"{'PASS' if r['step_pass'] else 'FAIL'} |")
     return "\n".join(lines) + "\n"
 
@@ -169,10 +190,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--goals", type=int, default=2, help="goal poses per world")
     parser.add_argument("--random", type=int, default=5, help="random worlds (seeds 0..N-1)")
     parser.add_argument("--jobs", type=int, default=1, help="worker processes (one world per task)")
+    parser.add_argument("--push-forward", action="store_true",
+                        help="track the push-forward direction (ControllerConfig(push_forward=True))")
     args = parser.parse_args(argv)
     if args.starts < 1 or args.goals < 1 or args.random < 0 or args.jobs < 1:
         parser.error("--starts, --goals and --jobs must be >= 1 and --random >= 0")
-    result = run(quick=args.quick, starts=args.starts, goals=args.goals, n_random=args.random, jobs=args.jobs)
+    result = run(quick=args.quick, starts=args.starts, goals=args.goals, n_random=args.random, jobs=args.jobs,
+                 push_forward=args.push_forward)
     write_results(args.out, "control", result, render_markdown(result))
     return 0
 
