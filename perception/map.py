@@ -14,8 +14,10 @@ The map starts knowing only the workspace and grows from scans:
    breakpoint rule (:meth:`PerceptionConfig.breakpoint`); clusters that become connected merge.
 4. **Refit** of a cluster only when its data contradicts its estimates: a new cell more than
    ``refit_tol`` outside them, or a newly free cell more than ``free_tol`` inside them (so the
-   same scan processed twice changes nothing); at most once every 5 scans per cluster unless a
-   return is more than ``0.75 radius`` outside (it would soon leave the inflated estimate). The cluster is fitted by
+   same scan processed twice changes nothing). A return more than ``0.75 radius`` outside (it
+   would soon leave the inflated estimate) refits at once; other contradictions make the
+   cluster pending: refitted at most once every 5 scans, together with a scan that refits
+   anyway (one forest check), or alone after 20 scans. The cluster is fitted by
    :func:`perception.fit.fit_cluster` (one squircle or a decomposition), extended through the
    workspace boundary when it touches it (walls on the boundary).
 5. **Clearances**: an estimate is trimmed (the face towards the disc moved back, the far side
@@ -64,6 +66,7 @@ _MAX_CELL_COUNT = 50  # returns averaged per cell (later ones are ignored: bound
 _REPAIR_STEPS = 16
 _GROW_STEP = 0.03
 _REFIT_EVERY = 5  # scans between non-urgent refits of one cluster
+_REFIT_LATEST = 20  # scans after which a pending (non-urgent) refit runs even on a quiet scan
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -422,10 +425,8 @@ class ObstacleMap:
             cells = touched["cells"][lab]
             q = self._sum[cells[:, 0], cells[:, 1]] / self._n[cells[:, 0], cells[:, 1]][:, None]
             err = self._cluster_error(lab, q)
-            # urgent when a return is about to leave the inflated estimate; otherwise at most
-            # one refit per cluster every ``_REFIT_EVERY`` scans (bounded work while exploring)
-            due = self.scans - self._clusters[lab].last_fit >= _REFIT_EVERY
-            if err > cfg.refit_tol and (due or err > 0.75 * self.radius):
+            # urgent when a return is about to leave the inflated estimate; otherwise pending
+            if err > 0.75 * self.radius:
                 refit.add(lab)
                 self.stats["refit_grown"] += 1
             elif err > cfg.refit_tol:
@@ -438,8 +439,14 @@ class ObstacleMap:
                 self._clusters[lab].pending = True
             self.stats["refit_free"] += len(contra - refit)
         if len(new_cells) or len(new_free):  # (a repeated scan brings nothing new: no refit)
+            # pending refits (returns still inside the inflated estimates, free space inside an
+            # estimate: accuracy, not safety) are at most one per cluster every
+            # ``_REFIT_EVERY`` scans and ride along with a scan that refits anyway (one forest
+            # check for all); on quiet scans they wait up to ``_REFIT_LATEST`` scans
+            busy = bool(refit)
             for lab, cl in self._clusters.items():
-                if cl.pending and self.scans - cl.last_fit >= _REFIT_EVERY:
+                age = self.scans - cl.last_fit
+                if cl.pending and age >= _REFIT_EVERY and (busy or age >= _REFIT_LATEST):
                     refit.add(lab)
         proposed = dict(self._est)
         changed: set[int] = set()
