@@ -18,8 +18,10 @@ free-space evidence inside the estimate and a penalty ``0.1 sqrt(N) max(a - a0, 
 constrained by data), by ``scipy.optimize.least_squares`` over ``(c, log a, log b, theta, s)``,
 started from OpenCV's ``minAreaRect`` (``s = 0.9``) and
 ``fitEllipse`` (``s = 0.1``) of the points; of the two results the one with the smaller total
-cost is kept, the free-space penalty deciding between fits of comparable point error. Then
-the *conservative completion*:
+cost is kept, the free-space penalty deciding between fits of comparable point error. A refit
+is warm (``init``, the previous estimates): the nearest previous estimate is solved first and
+kept when it still explains the points and the free space, else the rectangle seed is the
+alternative (:func:`fit_squircle`). Then the *conservative completion*:
 
 1. a face of the estimate counts as seen when at least two points lie on it and were seen
    from outside it (the beam direction points into the face); along an axis whose two faces
