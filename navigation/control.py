@@ -26,7 +26,7 @@ Choices where the paper is silent or loose, and why:
 * **Which direction is tracked** (``ControllerConfig.push_forward``, default off). By default
   ``theta_gamma`` is the direction of ``Upsilon = -grad phi_ONF`` (eq. 23). Where the
   navigation transformation is strongly anisotropic (singular values of ``dPhi/dq`` 50 to 1 and
-  more, inside free space on every shared world) that gradient is pinned to ``+-`` the major
+  more inside free space on ``simple`` and ``office``) that gradient is pinned to ``+-`` the major
   singular direction and flips across thin folds: ``|grad theta_gamma|`` of 10^2-10^4 rad/m
   (measured). At ``dt = 0.1`` s the feed-forward of (24b) then acts as a heading feedback of
   gain ``v |grad theta_gamma|`` far above the sampled-data limit ``2 / dt`` and ``omega``

@@ -67,7 +67,7 @@ curves, so everything above holds for them too, exactly rather than only at the 
 decreases along them (``grad phi_ONF . flow = -mu logistic' |grad_x' phi_O|^2 < 0``), they
 reach no boundary, the critical points are the same, and at the goal ``dx'/dq = A J`` is a
 rotation, so they arrive along ``theta_G``. Where ``dPhi/dq`` is strongly anisotropic (singular
-values 50 to 1 and more inside free space on the shared worlds) the direction of ``Upsilon``
+values 50 to 1 and more inside free space on ``simple`` and ``office``) the direction of ``Upsilon``
 itself is pinned to plus or minus the major singular direction and flips across thin folds
 (``|grad theta_gamma|`` 10^2-10^4 rad/m); the push-forward direction follows the point world's
 curves through such regions (measured on ``office``: 99th percentile of
