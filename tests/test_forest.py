@@ -433,16 +433,18 @@ def test_fifty_obstacles():
 
 
 # ---------------------------------------------------------------------- fast paths = reference
+@pytest.fixture(scope="module")
+def bodies():
+    """Boundary samples of the office obstacles and, last, its workspace."""
+    from navigation.forest import _SAMPLES, _WS_SAMPLES, _Body
+
+    w = load_world("office")
+    return [_Body(o, _SAMPLES) for o in w.obstacles] + [_Body(w.workspace, _WS_SAMPLES)]
+
+
 class TestFastPathsMatchReferences:
     """The build's fast computations (table-free distances, the common-centre LP, coarse-to-fine
     pair distances) return what reference computations return."""
-
-    @pytest.fixture(scope="class")
-    def bodies(self):
-        from navigation.forest import _SAMPLES, _WS_SAMPLES, _Body
-
-        w = load_world("office")
-        return [_Body(o, _SAMPLES) for o in w.obstacles] + [_Body(w.workspace, _WS_SAMPLES)]
 
     def test_signed_distance_rows_equals_the_tabled_distance(self):
         """The table-free distance of the forest build equals :meth:`Squircle.distance` (itself
