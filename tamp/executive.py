@@ -101,8 +101,7 @@ from .errors import InvalidRequestError, NoPlanError
 from .harmonic_tree import NoTreePathError, RotationWeights, TreeFailure, plan_tree, rotation_terms
 from .ltl import ops
 from .navmap import START, Node
-from .planner import MissionMode, MissionPlanner, Plan, _Mission, _Urgent
-from .product import Product
+from .planner import MissionMode, MissionPlanner, Plan
 from .roadmap import Roadmap, RoadmapConfig, segments_clear
 
 __all__ = ["Executive", "ExecutiveConfig", "ExecutiveState", "TickResult", "RegionError", "RegionRule"]
@@ -577,31 +576,12 @@ class Executive:
         self._check_regions(new, changed)
         moved = {n for n in changed if n in old}
         pose = self._pose
-        old_p = self.planner
-        planner = MissionPlanner(new, None, n_orient=self.config.n_orient, start=pose)
-        # NOTE: MissionPlanner has no public API to change its regions; the mission's state is
-        # carried over through its private fields (same package). The product is rebuilt over
-        # the new map; the automata and their current states do not depend on the map.
-        node = old_p.node
-        if node.region != START and node.region not in moved:
-            planner._node = planner.navmap.index[node]
-        else:
-            planner.set_position(pose)
-        names = planner.navmap.regions
-        m = old_p._mission
-        if m is not None:
-            letters = ops.singleton_letters(m.buchi, names)
-            if keep_mission:
-                _check_alphabet(m.text, m.buchi, old_p._states, letters, m.letters, changed)
-            planner._mission = _Mission(m.text, m.buchi, Product(planner.navmap, m.buchi), letters)
-            planner._states = old_p._states
-            planner._violated = old_p._violated
-        for u in old_p._urgent:  # urgent requests survive every mode, replace included
-            letters = ops.singleton_letters(u.buchi, names)
-            _check_alphabet(u.text, u.buchi, u.states, letters, ops.singleton_letters(u.buchi, old), changed)
-            planner._urgent.append(_Urgent(u.text, u.buchi, ops.universal_states(u.buchi, letters), u.states))
-        planner.visited = list(old_p.visited)
-        planner._seen_version = planner.navmap.version
+
+        def alphabet(text, buchi, states, letters, old_letters, urgent):
+            if keep_mission or urgent:  # urgent requests survive every mode, replace included
+                _check_alphabet(text, buchi, states, letters, old_letters, changed)
+
+        planner = self.planner.with_regions(new, pose=pose, moved=moved, check=alphabet)
         return {"regions": new, "changed": changed, "moved": moved, "planner": planner, "pose": pose}
 
     def _check_regions(self, regions: dict, changed) -> None:

@@ -458,6 +458,44 @@ class MissionPlanner:
         if formula is not None:
             self.request(formula, MissionMode.REPLACE)
 
+    # ---- regions changed at run time -------------------------------------------------------
+    def with_regions(self, regions, *, pose, moved=(), check=None) -> "MissionPlanner":
+        """A planner over ``regions`` (a mapping name -> region) that carries this one's mission
+        on: the mission and urgent requests with their automaton states, the violation flag, the
+        visited trace and the robot's node (kept when its region did not move, else the start
+        node at ``pose``). The product is rebuilt over the new map; automata and their states do
+        not depend on the map. ``self`` is not changed.
+
+        ``check(text, buchi, states, letters, old_letters, urgent)``, if given, is called for the
+        mission (``urgent=False``) and for each urgent request (``urgent=True``) with the
+        automaton's singleton letters over the new and the old region names, and may raise to
+        refuse the change (the executive's alphabet rule).
+        """
+        planner = MissionPlanner(regions, None, n_orient=self.navmap.n_orient, w=self.navmap.w, alpha=self.alpha,
+                                 start=pose)
+        node = self.node
+        if node.region != START and node.region not in set(moved):
+            planner._node = planner.navmap.index[node]
+        else:
+            planner.set_position(pose)
+        names, old_names = planner.navmap.regions, self.navmap.regions
+        m = self._mission
+        if m is not None:
+            letters = ops.singleton_letters(m.buchi, names)
+            if check is not None:
+                check(m.text, m.buchi, self._states, letters, m.letters, False)
+            planner._mission = _Mission(m.text, m.buchi, Product(planner.navmap, m.buchi), letters)
+            planner._states = self._states
+            planner._violated = self._violated
+        for u in self._urgent:  # urgent requests survive every mode, replace included
+            letters = ops.singleton_letters(u.buchi, names)
+            if check is not None:
+                check(u.text, u.buchi, u.states, letters, ops.singleton_letters(u.buchi, old_names), True)
+            planner._urgent.append(_Urgent(u.text, u.buchi, ops.universal_states(u.buchi, letters), u.states))
+        planner.visited = list(self.visited)
+        planner._seen_version = planner.navmap.version
+        return planner
+
     # ---- positions ------------------------------------------------------------------------
     def _resolve_start(self, start) -> int:
         m = self.navmap

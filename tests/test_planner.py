@@ -375,3 +375,29 @@ def test_world_events_modes_parse():
     assert plan.urgent_regions == ("u1",) and plan.to_dict()["urgent"] == ["u1"]
     p.set_position((4.5, 0.5, 0.0))
     assert p.node == Node(START, 0) and p.plan().urgent_regions == ("u1",)
+
+
+def test_with_regions_carries_the_mission_over_and_leaves_the_planner_alone():
+    """A planner over a changed region set keeps the mission, its automaton states, the urgent
+    queue, the visited trace and the robot's node; the original planner is unchanged."""
+    regions = {"a": (0.0, 0.0), "b": (3.0, 0.0), "c": (0.0, 3.0)}
+    p = MissionPlanner(regions, "F a & F b & F c", start="a")
+    p.advance("a")
+    p.request("F c", MissionMode.URGENT)
+    before = (p.current, p.pending_urgent, list(p.visited), p.node)
+    q = p.with_regions({**regions, "d": (3.0, 3.0)}, pose=(0.0, 0.0, 0.0))
+    assert (p.current, p.pending_urgent, list(p.visited), p.node) == before
+    assert "d" not in p.navmap.regions and "d" in q.navmap.regions
+    assert q.mission == p.mission and q.pending_urgent == p.pending_urgent
+    assert {s for _, s in q.current} == {s for _, s in p.current} and q.node == p.node
+    assert list(q.visited) == list(p.visited)
+    assert q.plan().urgent  # the urgent request is still served first
+    # a moved region: the robot's node is re-resolved from the pose
+    moved = q.with_regions({**regions, "a": (0.5, 0.0), "d": (3.0, 3.0)}, pose=(0.1, 0.1, 0.0), moved={"a"})
+    assert moved.node.region == START
+    # the check sees the mission and the urgent request, and may refuse
+    seen = []
+    q.with_regions(regions, pose=(0.0, 0.0, 0.0), check=lambda *a: seen.append(a[-1]))
+    assert sorted(seen) == [False, True]
+    with pytest.raises(InvalidRequestError):
+        q.with_regions(regions, pose=(0.0, 0.0, 0.0), check=lambda *a: (_ for _ in ()).throw(InvalidRequestError("no")))
