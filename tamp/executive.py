@@ -619,14 +619,10 @@ class Executive:
         self.planner = planner
         self.task = planner.mission
         # evaluated transitions between unmoved regions keep their trees and map costs
-        for key, res in list(self._pair.items()):
-            if key[0] in moved or key[1] in moved:
-                del self._pair[key]
-            elif isinstance(res, Exception):
-                planner.remove_edge(*key)
-            else:
-                planner.set_cost(key[0], key[1], res.cost)
+        for key in [k for k in self._pair if k[0] in moved or k[1] in moved]:
+            del self._pair[key]
         self._start_pair.clear()
+        self._apply_tree_costs()
         q = np.asarray(pose[:2], dtype=float)
         self._inside = {n for n in self._inside if n in new and new[n].contains(q)}
         if self._at_region is not None and (self._at_region in moved or self._at_region not in self._inside):
@@ -1015,13 +1011,24 @@ class Executive:
             return
         self.weights = w
         self.weight_fits += 1
+        self._apply_tree_costs()
+
+    def _tree_cost(self, tree) -> float:
+        """A tree's cost under the current weights (its own when it was searched with them)."""
+        return tree.cost if tree.weights == self.weights else tree.recost(self.weights)
+
+    def _apply_tree_costs(self) -> None:
+        """Map costs of every evaluated transition under the current weights: its tree's cost,
+        or the edge removed when it has no tree."""
         nm = self.planner.navmap
         for (a, b), tree in self._pair.items():
-            if not isinstance(tree, Exception):
-                nm.set_cost(a, b, tree.recost(w))
+            if isinstance(tree, Exception):
+                nm.remove_edge(a, b)
+            else:
+                nm.set_cost(a, b, self._tree_cost(tree))
         for b, tree in self._start_pair.items():
             if not isinstance(tree, Exception):
-                nm.set_cost(Node(START, 0), b, tree.recost(w), symmetric=False)
+                nm.set_cost(Node(START, 0), b, self._tree_cost(tree), symmetric=False)
 
 
 def _as_region(name, spec) -> Region:

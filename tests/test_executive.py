@@ -220,11 +220,18 @@ def test_rotation_weights_are_refitted_from_traversed_edges():
         ex._edge_done(k)
     assert ex.weight_fits >= 1
     assert ex.weights.w1 == pytest.approx(0.3, abs=1e-9) and ex.weights.w2 == pytest.approx(0.2, abs=1e-9)
-    nm = ex.planner.navmap
-    for (a, b), tree in ex._pair.items():
-        if not isinstance(tree, Exception):
-            best = min(nm.cost(u, v) for u in nm.region_nodes(a) for v in nm.region_nodes(b))
-            assert best == pytest.approx(tree.recost(ex.weights), rel=1e-12)
+    def assert_costs_follow_the_weights():
+        nm = ex.planner.navmap
+        for (a, b), tree in ex._pair.items():
+            if not isinstance(tree, Exception):
+                best = min(nm.cost(u, v) for u in nm.region_nodes(a) for v in nm.region_nodes(b))
+                assert best == pytest.approx(tree.recost(ex.weights), rel=1e-12)
+
+    assert_costs_follow_the_weights()
+    # a run-time region change rebuilds the map: the kept trees keep the refitted costs
+    ex.set_regions({"d": D})
+    assert ex._pair
+    assert_costs_follow_the_weights()
 
 
 def test_rotation_weights_refit_during_a_mission():
