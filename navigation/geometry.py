@@ -490,22 +490,41 @@ class ExactDistance:
             else:
                 px, py = pts_g[g, :, 0], pts_g[g, :, 1]
             d2 = (px - q[sel, 0, None]) ** 2 + (py - q[sel, 1, None]) ** 2  # (k, n)
-            local = d2 <= np.roll(d2, 1, axis=1)
-            local &= d2 <= np.roll(d2, -1, axis=1)
-            local &= d2 <= (np.sqrt(d2.min(axis=1)) + half_gap[g])[:, None] ** 2
-            r, k = np.nonzero(local)
-            n = psi_g.shape[1]
-            psi = psi_g[g[r]]
+            r, k = _candidates(d2, half_gap[g])
+            lo, hi = _brackets(psi_g[g[r]], k)
             pair.append(sel[r])
-            los.append(np.where(k > 0, psi[np.arange(len(k)), k - 1], psi[:, -1] - 2.0 * math.pi))
-            his.append(np.where(k < n - 1, psi[np.arange(len(k)), (k + 1) % n], psi[:, 0] + 2.0 * math.pi))
+            los.append(lo)
+            his.append(hi)
         pair = np.concatenate(pair)
         best = _refine_brackets(self.P[j[pair]], q[pair], np.concatenate(los), np.concatenate(his), self.stages,
                                 self.m)
-        dist = np.full(len(q), np.inf)
-        np.minimum.at(dist, pair, np.sqrt(best))
-        inside = beta_rows(self.P[j], q[:, 0], q[:, 1]) < 0.0
-        return np.where(inside, -dist, dist)
+        return _signed(self.P[j], q, pair, best)
+
+
+def _candidates(d2: np.ndarray, half: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rows and indices of the discrete local minima of the sampled squared distances
+    ``d2 (K, n)`` (circular) within ``half (K,)`` (half the longest arc between samples) of
+    each row's smallest distance: every local minimum of the true distance is bracketed by one."""
+    local = (d2 <= np.roll(d2, 1, axis=1)) & (d2 <= np.roll(d2, -1, axis=1))
+    local &= d2 <= (np.sqrt(d2.min(axis=1)) + half)[:, None] ** 2
+    return np.nonzero(local)
+
+
+def _brackets(psi: np.ndarray, k: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The angles of the samples either side of sample ``k[c]`` of the rows ``psi (C, n)``
+    (wrapping around by ``2 pi``): the bracket of candidate ``c``."""
+    n, c = psi.shape[1], np.arange(len(k))
+    lo = np.where(k > 0, psi[c, k - 1], psi[:, -1] - 2.0 * math.pi)
+    hi = np.where(k < n - 1, psi[c, (k + 1) % n], psi[:, 0] + 2.0 * math.pi)
+    return lo, hi
+
+
+def _signed(P: np.ndarray, q: np.ndarray, pair: np.ndarray, best: np.ndarray) -> np.ndarray:
+    """Signed distances of the points ``q (K, 2)`` to their squircles ``P (K, 7)`` from the
+    refined squared distances ``best`` of candidates belonging to points ``pair``."""
+    dist = np.full(len(q), np.inf)
+    np.minimum.at(dist, pair, np.sqrt(best))
+    return np.where(beta_rows(P, q[:, 0], q[:, 1]) < 0.0, -dist, dist)
 
 
 def _refine_brackets(P: np.ndarray, q: np.ndarray, lo: np.ndarray, hi: np.ndarray, stages: int, m: int) -> np.ndarray:
@@ -554,16 +573,9 @@ def signed_distance_rows(P: np.ndarray, q: np.ndarray, n: int = 128, stages: int
     arc = np.where(cos > 0.1, chord / np.maximum(cos, 0.1), np.inf)
     half = 0.5 * arc.max(axis=1)
     d2 = (bx - q[:, 0, None]) ** 2 + (by - q[:, 1, None]) ** 2
-    local = (d2 <= np.roll(d2, 1, axis=1)) & (d2 <= np.roll(d2, -1, axis=1))
-    local &= d2 <= (np.sqrt(d2.min(axis=1)) + half)[:, None] ** 2
-    r, k = np.nonzero(local)
-    lo = np.where(k > 0, psi[k - 1], psi[-1] - 2.0 * math.pi)
-    hi = np.where(k < n - 1, psi[(k + 1) % n], psi[0] + 2.0 * math.pi)
-    best = _refine_brackets(P[r], q[r], lo, hi, stages, m)
-    dist = np.full(len(q), np.inf)
-    np.minimum.at(dist, r, np.sqrt(best))
-    inside = beta_rows(P, q[:, 0], q[:, 1]) < 0.0
-    return np.where(inside, -dist, dist)
+    r, k = _candidates(d2, half)
+    lo, hi = _brackets(np.broadcast_to(psi, (len(k), n)), k)
+    return _signed(P, q, r, _refine_brackets(P[r], q[r], lo, hi, stages, m))
 
 
 @functools.lru_cache(maxsize=4096)
