@@ -310,11 +310,11 @@ class _Body:
     __slots__ = ("sq", "row", "psi", "pts", "w0", "spacing", "radius")
 
     def __init__(self, sq: Squircle, n: int, _arrays=None):
-        row, psi, pts = _arrays if _arrays is not None else _sample_rows(pack([sq]), n)
+        """``_arrays``: this squircle's ``(row, psi, pts)`` row of a :func:`_sample_rows` batch."""
+        if _arrays is None:
+            _arrays = tuple(a[0] for a in _sample_rows(pack([sq]), n))
         self.sq = sq
-        self.row = row[0] if row.ndim == 2 else row
-        self.psi = psi.reshape(-1)
-        self.pts = pts.reshape(-1, 2)
+        self.row, self.psi, self.pts = _arrays
         gaps = np.diff(np.concatenate((self.psi, [self.psi[0] + 2.0 * np.pi])))
         self.w0 = 1.5 * float(gaps.max())
         self.spacing = float(np.max(np.linalg.norm(self.pts - np.roll(self.pts, 1, axis=0), axis=1)))
@@ -432,7 +432,9 @@ def _newton_pair(PI: np.ndarray, PJ: np.ndarray, c0: np.ndarray, w0: np.ndarray,
     Safeguarded Newton with the exact derivatives of :func:`~navigation.geometry.boundary_jet_rows`:
     a step is the Newton step where the Hessian is positive definite and a Levenberg-Marquardt step
     elsewhere, clipped to the sampling window ``w0`` and halved until ``f`` does not increase
-    (so ``f`` never exceeds ``f0``). Stops when every step is below ``tol`` (radians).
+    (so ``f`` never exceeds ``f0``). A row stops when its Newton step is below ``tol`` (radians),
+    when no step along its direction decreases ``f``, or when ``f`` decreased by less than 1e-14
+    relative.
     """
     c, f = c0.astype(float).copy(), f0.astype(float).copy()
     active = np.ones(len(c), bool)
@@ -616,7 +618,7 @@ def _common_centers(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, outsi
     points inside ``O_I`` lie outside ``W`` by at least their distance to that line; each of up
     to ``_WS_TANGENTS`` such lines gives a linear program (the polygon of ``O_I`` and the
     half-plane beyond the line) and the best result is kept. The depth at the chosen point is
-    then evaluated exactly (:meth:`Squircle.distance`); intersections thinner than ``_THIN``
+    then evaluated exactly (:func:`_signed_distance`); intersections thinner than ``_THIN``
     are refined on exact distances (:func:`_thin_centers`). Returns ``(points (E, 2), depth (E,))``.
     """
     E = len(I)
