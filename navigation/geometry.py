@@ -149,7 +149,8 @@ class Squircle:
 
     @property
     def area(self) -> float:
-        """Enclosed area (shoelace formula over 512 boundary samples; memoised)."""
+        """Enclosed area: ``(width / 2) (height / 2) A(s)``, ``A(s)`` the unit squircle's area
+        (an integral over the boundary angle, memoised per ``s``)."""
         return _area(self)
 
     def packed(self) -> np.ndarray:
@@ -337,12 +338,25 @@ def _grow(sq: Squircle, r: float, samples: int) -> Squircle:
     return sq._grow_uncached(r, samples)
 
 
-@functools.lru_cache(maxsize=4096)
 def _area(sq: Squircle) -> float:
-    """Area of ``sq`` (see :attr:`Squircle.area`)."""
-    pts = sq.boundary_points(512)
-    x, y = pts[:, 0], pts[:, 1]
-    return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+    """Area of ``sq`` (see :attr:`Squircle.area`): ``(width / 2) (height / 2) A(s)``."""
+    return 0.25 * sq.width * sq.height * _unit_area(sq.s)
+
+
+@functools.lru_cache(maxsize=256)
+def _unit_area(s: float) -> float:
+    """Area of the squircle with half-extents 1 and parameter ``s``.
+
+    In the parametrisation of :meth:`Squircle.point_at` the boundary is ``rho(psi) (cos psi,
+    sin psi)`` with ``rho^2 = 2 / (1 + sqrt(1 - s^2 sin^2 2 psi))``, so the area is
+    ``(1/2) int_0^{2 pi} rho^2 dpsi = 4 int_0^{pi/2} dpsi / (1 + sqrt(1 - s^2 sin^2 2 psi))``: the
+    trapezoidal rule on 4096 nodes of the smooth periodic integrand (spectrally accurate;
+    ``pi`` at ``s = 0``, the unit disc, tending to 4, the square, as ``s -> 1``). Scaling by the
+    half-extents gives any squircle's area.
+    """
+    psi = np.linspace(0.0, 0.5 * np.pi, 4096, endpoint=False)
+    g = np.sqrt(np.maximum(1.0 - s * s * np.sin(2.0 * psi) ** 2, 0.0))
+    return float(4.0 * (0.5 * np.pi / 4096) * np.sum(1.0 / (1.0 + g)))
 
 
 def point_at_rows(P: np.ndarray, psi: np.ndarray) -> np.ndarray:
@@ -587,7 +601,7 @@ def _exact_distance(sq: Squircle, min_samples: int) -> ExactDistance:
 def clear_geometry_cache() -> None:
     """Forget the memoised per-squircle tables (distance samples, areas)."""
     _exact_distance.cache_clear()
-    _area.cache_clear()
+    _unit_area.cache_clear()
     _grow.cache_clear()
     _sample_table.cache_clear()
     _perimeter.cache_clear()
