@@ -44,7 +44,13 @@ steps that involve changed obstacles, and gives the result of a cold build (up t
 
 Distances
 ---------
-Obstacle-obstacle and obstacle-workspace distances: closest pair of coarse boundary samples
+The navigation function needs, per obstacle, only the smallest distance its shell must respect
+(:attr:`Forest.clearance`), and the rules need only the pairs closer than ``min_gap``. Every pair
+first gets a cheap lower bound (bounding rectangles and discs, :func:`_gap_bounds`); exact
+distances are computed for the pairs below ``min_gap`` and, in a few batched rounds, for the
+pairs whose bound is the current minimum of some obstacle, until every minimum is exact. The full
+matrix :attr:`Forest.distances` is computed on first access. Exact obstacle-obstacle and
+obstacle-workspace distances: closest pair of coarse boundary samples
 (every local minimum within the sampling error is a candidate), refined on the samples and then
 by Newton on both boundary parameters with exact derivatives; point-to-boundary distances are
 :meth:`Squircle.distance`.
@@ -68,7 +74,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import networkx as nx
 import numpy as np
@@ -148,14 +154,23 @@ class Forest:
     center_depth : ndarray, shape (M,)
         ``min`` of the depths of ``center[i]`` in ``O_i`` and in its parent (outside the
         workspace for workspace children); a root's depth inside itself.
-    distances : ndarray, shape (M, M)
-        Euclidean distance between obstacles (0 where they overlap and on the diagonal).
     wall_distance : ndarray, shape (M,)
         Distance to the workspace boundary (0 for obstacles that cross it).
     far_gap : ndarray, shape (M,)
         For a child of the workspace: the smallest distance, along the rays from its common
         centre on which it reaches into the workspace, from its boundary to the workspace
         boundary beyond it (the room its purge shell has there); ``inf`` for other obstacles.
+    clearance : ndarray, shape (M,)
+        The room around obstacle ``i`` that its shell in the transformation chain must respect
+        (exact, the minimum of exact distances): for a non-root, the distance to the nearest
+        obstacle still present when it is purged (depth <= its depth, its parent excepted) and
+        to the workspace boundary (``far_gap`` for a workspace child, ``wall_distance``
+        otherwise); for an interior root, the distance to the nearest other root and to the
+        workspace boundary. ``inf`` when nothing bounds it.
+    distances : ndarray, shape (M, M)
+        Euclidean distance between obstacles (0 where they overlap and on the diagonal). Not
+        needed to build the navigation function (``clearance`` is), so computed on first
+        access (exact, memoised) rather than at construction.
     """
 
     workspace: Squircle
@@ -169,12 +184,29 @@ class Forest:
     tree_of: tuple[int, ...]
     center: np.ndarray
     center_depth: np.ndarray
-    distances: np.ndarray
     wall_distance: np.ndarray
     far_gap: np.ndarray
+    clearance: np.ndarray
+    _lazy: dict = field(default_factory=dict, repr=False)
 
     def __len__(self) -> int:
         return len(self.obstacles)
+
+    @property
+    def distances(self) -> np.ndarray:
+        """Euclidean distances between obstacles ``(M, M)`` (see the class docstring)."""
+        d = self._lazy.get("distances")
+        if d is None:
+            m = len(self.obstacles)
+            d = np.zeros((m, m))
+            I, J = np.triu_indices(m, 1)
+            apart = np.array([self.parent[i] != j and self.parent[j] != i for i, j in zip(I, J)], bool)
+            I, J = I[apart], J[apart]
+            if I.size:
+                d[I, J] = d[J, I] = _distances(_bodies(self.obstacles, _SAMPLES), I, J)
+            d.flags.writeable = False
+            self._lazy["distances"] = d
+        return d
 
     @property
     def max_depth(self) -> int:
@@ -359,6 +391,49 @@ def _sq_dists(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return dx * dx + dy * dy
 
 
+def _gap_bounds(P: np.ndarray) -> np.ndarray:
+    """Lower bounds ``(K, K)`` of the distances between the squircles of rows ``P (K, 7)``.
+
+    A squircle lies inside its bounding rectangle and inside its bounding disc, so the exact
+    distance between two rectangles (0 when a separating-axis test finds no separating axis
+    among their four edge directions, otherwise the smallest corner-to-edge distance) and the
+    gap between the discs both bound the squircles' distance from below; the larger is
+    returned (the rectangle is tight for the near-rectangular squircles of walls, the disc for
+    round ones). Diagonal 0.
+    """
+    K = len(P)
+    c = P[:, [CX, CY]]
+    ax = np.stack((P[:, COS], P[:, SIN]), axis=1)  # (K, 2) local x axis
+    ay = np.stack((-P[:, SIN], P[:, COS]), axis=1)
+    hw, hh = P[:, HW], P[:, HH]
+    sx = np.array([1.0, -1.0, -1.0, 1.0])
+    sy = np.array([1.0, 1.0, -1.0, -1.0])
+    corners = c[:, None] + (sx[None, :, None] * hw[:, None, None]) * ax[:, None] \
+        + (sy[None, :, None] * hh[:, None, None]) * ay[:, None]  # (K, 4, 2), counter-clockwise
+    # separating axes: the two axes of either rectangle
+    d = c[None, :] - c[:, None]  # (K, K, 2): c_j - c_i
+    sep = np.zeros((K, K), bool)
+    for axes in (ax, ay):
+        for n in (axes[:, None, :], axes[None, :, :]):  # axes of i, then of j
+            ri = hw[:, None] * np.abs((n * ax[:, None]).sum(-1)) + hh[:, None] * np.abs((n * ay[:, None]).sum(-1))
+            rj = hw[None, :] * np.abs((n * ax[None, :]).sum(-1)) + hh[None, :] * np.abs((n * ay[None, :]).sum(-1))
+            sep |= np.abs((n * d).sum(-1)) > ri + rj
+    # corners of i to edges of j
+    a = corners  # edge k of j: corners[j, k] -> corners[j, k+1]
+    b = np.roll(corners, -1, axis=1)
+    e = b - a  # (K, 4, 2)
+    p = corners[:, None, :, None, :]  # (K_i, 1, 4 corners, 1, 2)
+    a_, e_ = a[None, :, None, :, :], e[None, :, None, :, :]  # (1, K_j, 1, 4 edges, 2)
+    tt = np.clip(((p - a_) * e_).sum(-1) / (e_ * e_).sum(-1), 0.0, 1.0)
+    dist = np.linalg.norm(p - a_ - tt[..., None] * e_, axis=-1).min(axis=(2, 3))  # (K_i, K_j)
+    rect = np.where(sep, np.minimum(dist, dist.T), 0.0)
+    R = np.hypot(hw, hh)
+    disc = np.linalg.norm(d, axis=-1) - R[:, None] - R[None, :]
+    out = np.maximum(rect, disc)
+    np.fill_diagonal(out, 0.0)
+    return np.maximum(out, 0.0)
+
+
 def _pair_distance(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, tol: float = 1e-12):
     """Minimum distance between the boundaries of bodies ``I[k]`` and ``J[k]``.
 
@@ -459,7 +534,11 @@ def _newton_pair(PI: np.ndarray, PJ: np.ndarray, c0: np.ndarray, w0: np.ndarray,
         hs, ht = hss + lam, htt + lam
         step = -np.stack((ht * gs - hst * gt, hs * gt - hst * gs), 1) / (hs * ht - hst * hst)[:, None]
         step = np.clip(step, -w0[r], w0[r])
-        done = newton & (np.abs(step).max(axis=1) <= tol)  # converged: the Newton step is tiny
+        # converged: the Newton step is tiny, or the step's first-order decrease is below 1e-13
+        # relative (the distance is then settled to ~5e-14 relative; the parameters may still
+        # slide along a flat valley between nearly parallel faces, which changes nothing)
+        gain = -(gs * step[:, 0] + gt * step[:, 1])
+        done = (newton & (np.abs(step).max(axis=1) <= tol)) | (gain <= 1e-13 * f[r] + 1e-300)
         active[r[done]] = False
         r, step, newton = r[~done], step[~done], newton[~done]
         if r.size == 0:
@@ -490,28 +569,49 @@ def _newton_pair(PI: np.ndarray, PJ: np.ndarray, c0: np.ndarray, w0: np.ndarray,
 
 
 def _extreme_beta(body: _Body, other_row: np.ndarray, sign: float, vals: np.ndarray | None = None) -> float:
-    """``min`` (sign=+1) or ``max`` (sign=-1) of ``other``'s beta along ``body``'s boundary.
-
-    Exact when the extreme is near zero. When the sampled extreme ``vals`` is farther from zero
-    than beta can change between neighbouring samples, it is returned as is: only its sign is
-    used by the callers, and that sign is then certain.
-    """
+    """``min`` (sign=+1) or ``max`` (sign=-1) of ``other``'s beta along ``body``'s boundary
+    (one row of :func:`_extreme_betas`)."""
     if vals is None:
         vals = _beta(other_row[None], body.pts[None])[0]
-    v = sign * vals
-    a = int(np.argmin(v))
-    P = other_row[None, :]
-    grad = np.hypot(*beta_gradient_rows(other_row, body.pts[:, 0], body.pts[:, 1]))
-    if abs(v[a]) > 2.0 * body.spacing * float(grad.max()) + 1e-12:  # NaN (a centre on it): refine
-        return float(sign * v[a])
-    Pb = body.row[None, :]
+    return float(_extreme_betas([body], other_row[None], np.array([sign], float), vals[None])[0])
 
-    def fun(rows, ps):
-        return sign * _beta(P, _xy(Pb, ps[..., 0]))
 
-    _, f = _pattern_min(fun, np.array([[body.psi[a]]]), np.array([[body.w0]]), np.array([v[a]]),
-                        m=9, shrink=0.3, tol=1e-13)
-    return float(sign * f[0])
+def _extreme_betas(bodies: Sequence[_Body], others: np.ndarray, sign: np.ndarray, vals: np.ndarray) -> np.ndarray:
+    """Per row ``k``: ``min`` (``sign[k] = +1``) or ``max`` (``-1``) of the beta of the packed
+    squircle ``others[k]`` along the boundary of ``bodies[k]``, given its values ``vals[k]`` at
+    the body's samples (all bodies with the same number of samples).
+
+    Exact when the extreme is near zero. When the sampled extreme is farther from zero than
+    beta can change between neighbouring samples (twice the sample spacing times the largest
+    gradient norm of beta over the samples), it is returned as is: only its sign is used by the
+    callers, and that sign is then certain. The other rows are refined together by a pattern
+    search on the boundary parameter.
+    """
+    K = len(bodies)
+    if K == 0:
+        return np.empty(0)
+    sign = np.asarray(sign, float)
+    v = sign[:, None] * vals
+    a = np.argmin(v, axis=1)
+    va = v[np.arange(K), a]
+    pts = np.stack([b.pts for b in bodies])
+    spacing = np.array([b.spacing for b in bodies])
+    gx, gy = beta_gradient_rows(others[:, None, :], pts[..., 0], pts[..., 1])
+    grad = np.hypot(gx, gy).max(axis=1)
+    out = sign * va
+    # NaN (a centre on the boundary): refine
+    todo = np.nonzero(~(np.abs(va) > 2.0 * spacing * grad + 1e-12))[0]
+    if todo.size:
+        P, Pb, sg = others[todo], np.stack([bodies[k].row for k in todo]), sign[todo]
+
+        def fun(rows, ps):
+            return sg[rows, None] * _beta(P[rows], _xy(Pb[rows], ps[..., 0]))
+
+        c0 = np.array([[bodies[k].psi[a[k]]] for k in todo])
+        w0 = np.array([[bodies[k].w0] for k in todo])
+        _, f = _pattern_min(fun, c0, w0, va[todo], m=9, shrink=0.3, tol=1e-13)
+        out[todo] = sg * f
+    return out
 
 
 def _arcs_outside(values: np.ndarray) -> int:
@@ -793,53 +893,81 @@ def common_center(a: Squircle, b: Squircle, *, outside_b: bool = False) -> tuple
 
 def _overlap(A: _Body, B: _Body) -> bool:
     """Exact overlap test of two convex squircles (boundaries cross, or containment)."""
-    va = _beta(B.row[None], A.pts[None])[0]
-    if va.min() < 0:
-        return True
-    vb = _beta(A.row[None], B.pts[None])[0]
-    if vb.min() < 0:
-        return True
-    return _extreme_beta(A, B.row, 1.0, va) < 0
+    return _pair_relation(A, B) is not None
 
 
 # ---------------------------------------------------------------------- memoised steps
 def _workspace_relation(body: _Body, ws: _Body) -> str:
     """``"inside"``, ``"outside"``, ``"covers"`` (contains the workspace), ``"crosses"`` or
     ``"crosses-twice"``: where obstacle ``body`` lies relative to the workspace ``ws``."""
-    key = ("ws", body.sq, ws.sq)
-    rel = _PAIRS.get(key)
-    if rel is not None:
-        return rel
-    vals = _beta(ws.row[None], body.pts[None])[0]
-    if vals.max() < 0 and _extreme_beta(body, ws.row, -1.0, vals) <= 0:
-        rel = "inside"
-    elif vals.min() > 0 and _extreme_beta(body, ws.row, 1.0, vals) > 0:
-        rel = "covers" if np.all(_beta(body.row[None], ws.pts[None])[0] <= 0) else "outside"
-    else:
-        rel = "crosses-twice" if _arcs_outside(vals) > 1 else "crosses"
-    _PAIRS.put(key, rel)
-    return rel
+    return _workspace_relations([body], ws)[0]
+
+
+def _workspace_relations(bodies: Sequence[_Body], ws: _Body) -> list[str]:
+    """:func:`_workspace_relation` of every body (memoised; the missing ones in one batch)."""
+    keys = [("ws", b.sq, ws.sq) for b in bodies]
+    out = [_PAIRS.get(k) for k in keys]
+    todo = [k for k, r in enumerate(out) if r is None]
+    if not todo:
+        return out
+    sub = [bodies[k] for k in todo]
+    W = np.broadcast_to(ws.row, (len(sub), 7))
+    vals = _beta(W, np.stack([b.pts for b in sub]))  # (k, n)
+    lo, hi = vals.min(axis=1), vals.max(axis=1)
+    rel = [""] * len(sub)
+    inner = np.nonzero(hi < 0)[0]
+    if inner.size:
+        ext = _extreme_betas([sub[r] for r in inner], W[inner], np.full(inner.size, -1.0), vals[inner])
+        for r, e in zip(inner, ext):
+            rel[r] = "inside" if e <= 0 else ""
+    outer = np.nonzero(lo > 0)[0]
+    if outer.size:
+        ext = _extreme_betas([sub[r] for r in outer], W[outer], np.ones(outer.size), vals[outer])
+        for r, e in zip(outer, ext):
+            if e > 0:
+                rel[r] = "covers" if np.all(_beta(sub[r].row[None], ws.pts[None])[0] <= 0) else "outside"
+    for r in range(len(sub)):
+        if not rel[r]:
+            rel[r] = "crosses-twice" if _arcs_outside(vals[r]) > 1 else "crosses"
+        out[todo[r]] = rel[r]
+        _PAIRS.put(keys[todo[r]], rel[r])
+    return out
 
 
 def _pair_relation(a: _Body, b: _Body) -> str | None:
     """``None`` (disjoint), ``"overlap"``, ``"second-inside"`` (``b`` contained in ``a``, up to
     rounding: an identical copy, or one touching from inside, counts) or ``"first-inside"``."""
-    key = ("ov", a.sq, b.sq)
-    rel = _PAIRS.get(key)
-    if rel is not None:
-        return rel or None
-    rel = ""
-    if _overlap(a, b):
-        vb = _beta(a.row[None], b.pts[None])[0]
-        va = _beta(b.row[None], a.pts[None])[0]
-        if vb.max() <= _CONTAINED and _extreme_beta(b, a.row, -1.0, vb) <= _CONTAINED:
-            rel = "second-inside"
-        elif va.max() <= _CONTAINED and _extreme_beta(a, b.row, -1.0, va) <= _CONTAINED:
-            rel = "first-inside"
-        else:
-            rel = "overlap"
-    _PAIRS.put(key, rel)
-    return rel or None
+    return _pair_relations([a], [b])[0]
+
+
+def _pair_relations(A: Sequence[_Body], B: Sequence[_Body]) -> list[str | None]:
+    """:func:`_pair_relation` of every pair ``(A[k], B[k])`` (memoised; the missing ones in one
+    batch). The overlap test is exact for convex squircles: a sample of one inside the other,
+    else the sign of the (refined) minimum of ``B``'s beta along ``A``'s boundary."""
+    keys = [("ov", a.sq, b.sq) for a, b in zip(A, B)]
+    out = [_PAIRS.get(k) for k in keys]
+    todo = [k for k, r in enumerate(out) if r is None]
+    if todo:
+        sa, sb = [A[k] for k in todo], [B[k] for k in todo]
+        PA, PB = np.stack([a.row for a in sa]), np.stack([b.row for b in sb])
+        va = _beta(PB, np.stack([a.pts for a in sa]))  # B's beta on A's samples
+        vb = _beta(PA, np.stack([b.pts for b in sb]))
+        over = (va.min(axis=1) < 0) | (vb.min(axis=1) < 0)
+        und = np.nonzero(~over)[0]
+        if und.size:
+            over[und] = _extreme_betas([sa[r] for r in und], PB[und], np.ones(und.size), va[und]) < 0
+        rel = [""] * len(sa)
+        for r in np.nonzero(over)[0]:
+            if vb[r].max() <= _CONTAINED and _extreme_beta(sb[r], PA[r], -1.0, vb[r]) <= _CONTAINED:
+                rel[r] = "second-inside"
+            elif va[r].max() <= _CONTAINED and _extreme_beta(sa[r], PB[r], -1.0, va[r]) <= _CONTAINED:
+                rel[r] = "first-inside"
+            else:
+                rel[r] = "overlap"
+        for r, k in enumerate(todo):
+            out[k] = rel[r]
+            _PAIRS.put(keys[k], rel[r])
+    return [r or None for r in out]
 
 
 def _distances(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray) -> np.ndarray:
@@ -907,6 +1035,44 @@ def _root_depth(body: _Body) -> float:
     return body.sq.inscribed_radius
 
 
+def _clearances(parent: Sequence[int], depth: Sequence[int], roots: Sequence[int], wall: np.ndarray,
+                far: np.ndarray, bound: np.ndarray, exact: np.ndarray, settle) -> np.ndarray:
+    """:attr:`Forest.clearance`: per obstacle, the minimum over its set of relevant obstacles
+    (see there) of the exact distances, and of its workspace term.
+
+    Only the distances that can be the minimum are computed: in rounds, every obstacle whose
+    smallest current value (exact distance or lower bound from :func:`_gap_bounds`) is a bound
+    below its workspace term gets that pair settled (:func:`settle`, one batch per round), until
+    every minimum is exact. The result equals the minimum over all exact distances.
+    """
+    m = len(parent)
+    depth = np.asarray(depth)
+    others, base = [], np.full(m, np.inf)
+    for i in range(m):
+        if parent[i] == NO_PARENT:
+            S = [k for k in roots if k != i]
+            base[i] = wall[i]
+        else:
+            S = [k for k in np.nonzero(depth <= depth[i])[0] if k != i and k != parent[i]]
+            base[i] = far[i] if parent[i] == WORKSPACE else wall[i]
+        others.append(np.asarray(S, dtype=np.intp))
+    while True:
+        need = []
+        for i, S in enumerate(others):
+            if S.size:
+                k = S[np.argmin(bound[i, S])]
+                if not exact[i, k] and bound[i, k] < base[i]:
+                    need.append((min(i, k), max(i, k)))
+        if not need:
+            break
+        settle(need)
+    out = base.copy()
+    for i, S in enumerate(others):
+        if S.size:
+            out[i] = min(out[i], float(bound[i, S].min()))
+    return out
+
+
 # ---------------------------------------------------------------------- construction
 def _plural(items: Sequence[int]) -> str:
     """``"0, 1 and the workspace boundary"``: input indices, ``-1`` for the boundary (last)."""
@@ -972,8 +1138,7 @@ def build_forest(workspace: Squircle, obstacles: Sequence[Squircle], *, min_gap:
     # --- relation of every obstacle to the workspace boundary
     dropped: dict[int, str] = {}
     crossing: set[int] = set()
-    for k in range(n):
-        rel = _workspace_relation(bodies[k], bodies[W])
+    for k, rel in enumerate(_workspace_relations(bodies[:n], bodies[W])):
         if rel == "covers":
             raise ForestError(f"obstacle {k} covers the whole workspace: there is no free space",
                               obstacles=(k,), rule="covers-workspace")
@@ -994,11 +1159,10 @@ def build_forest(workspace: Squircle, obstacles: Sequence[Squircle], *, min_gap:
         rs = np.array([bodies[k].radius for k in live])
         margin = max(min_gap, 1e-9) * 2.0
         tree = cKDTree(cs)
-        for a, b in sorted(tree.query_pairs(2.0 * rs.max() + margin)):
-            i, j = live[a], live[b]
-            if np.hypot(*(cs[a] - cs[b])) > rs[a] + rs[b] + margin:
-                continue
-            rel = _pair_relation(bodies[i], bodies[j])
+        cand = [(live[a], live[b]) for a, b in sorted(tree.query_pairs(2.0 * rs.max() + margin))
+                if np.hypot(*(cs[a] - cs[b])) <= rs[a] + rs[b] + margin]
+        rels = _pair_relations([bodies[i] for i, _ in cand], [bodies[j] for _, j in cand])
+        for (i, j), rel in zip(cand, rels):
             if rel is None:
                 continue
             overlaps.add((i, j))
@@ -1033,20 +1197,33 @@ def build_forest(workspace: Squircle, obstacles: Sequence[Squircle], *, min_gap:
                           f"obstacles must form trees, and each tree may touch the workspace boundary at "
                           f"most once", obstacles=tuple(obst) + ((-1,) if -1 in ids else ()), rule="cycle")
 
-    # --- exact distances
-    distances = np.zeros((m, m))
+    # --- distances: lower bounds for every pair, exact where a rule needs them
+    rows = np.stack([bodies[k].row for k in keep]) if m else np.zeros((0, 7))
+    bound = _gap_bounds(rows)
+    exact = np.zeros((m, m), bool)
     edge_set = set(edges)
-    pairs = [(a, b) for a in range(m) for b in range(a + 1, m) if (a, b) not in edge_set]
-    if pairs:
-        d = _distances(bodies, np.array([keep[a] for a, _ in pairs]), np.array([keep[b] for _, b in pairs]))
-        for (a, b), v in zip(pairs, d):
-            distances[a, b] = distances[b, a] = v
+    for a, b in edges:
+        bound[a, b] = bound[b, a] = 0.0
+        exact[a, b] = exact[b, a] = True
+    np.fill_diagonal(exact, True)
+
+    def settle(pairs) -> None:
+        """Replace the bounds of ``pairs`` (``a < b``) by exact distances (memoised)."""
+        pairs = sorted({p for p in pairs if not exact[p]})
+        if pairs:
+            A, B = np.array(pairs).T
+            d = _distances(bodies, np.array([keep[a] for a in A]), np.array([keep[b] for b in B]))
+            bound[A, B] = bound[B, A] = d
+            exact[A, B] = exact[B, A] = True
+
+    I, J = np.nonzero(np.triu(bound < min_gap, 1))
+    settle((a, b) for a, b in zip(I, J) if (a, b) not in edge_set)
     wall = np.zeros(m)
     inner = [a for a in range(m) if a not in set(ws_children)]
     if inner:
         wall[inner] = _distances(bodies, np.array([keep[a] for a in inner]), np.full(len(inner), W))
 
-    close = [(a, b, distances[a, b]) for a, b in pairs if distances[a, b] < min_gap]
+    close = [(a, b, bound[a, b]) for a, b in zip(I, J) if (a, b) not in edge_set and bound[a, b] < min_gap]
     if close:
         a, b, v = min(close, key=lambda t: t[2])
         raise ForestError(f"obstacles {keep[a]} and {keep[b]} are {v:.3g} m apart without overlapping "
@@ -1119,7 +1296,8 @@ def build_forest(workspace: Squircle, obstacles: Sequence[Squircle], *, min_gap:
     ws_kids = [i for i in nonroot if parent[i] == WORKSPACE]
     if ws_kids:
         far[ws_kids] = _far_gaps(bodies, [keep[i] for i in ws_kids], W, center[ws_kids])
-    for arr in (center, cdepth, distances, wall, far):
+    clearance = _clearances(parent, depth, roots, wall, far, bound, exact, settle)
+    for arr in (center, cdepth, wall, far, clearance):
         arr.flags.writeable = False
     return Forest(
         workspace=workspace,
@@ -1133,7 +1311,7 @@ def build_forest(workspace: Squircle, obstacles: Sequence[Squircle], *, min_gap:
         tree_of=tuple(tree_of),
         center=center,
         center_depth=cdepth,
-        distances=distances,
         wall_distance=wall,
         far_gap=far,
+        clearance=clearance,
     )

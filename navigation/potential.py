@@ -25,12 +25,13 @@ Parameter rule (``NavParams``, recorded on the object, every entry overridable)
 ``width_fraction f``    0.45: every shell width is ``f`` times the clearance it must respect,
                         so shells of one stage (``< 0.5`` of any gap each) never meet
 purge width ``h_i``     ``f * min(distance to every obstacle present when leaf i is purged but
-                        its parent, to the workspace boundary)``, capped at ``width_cap``
+                        its parent, to the workspace boundary)`` (``Forest.clearance``), capped at ``width_cap``
                         (1 m) and twice the leaf's size. For a child of the workspace the
                         boundary distance is ``Forest.far_gap``: the room beyond the leaf along
                         its purge rays (a wider shell would move the opposite side of the
                         workspace into free space and break the diffeomorphism there)
-root width ``h_j``      ``f * min(distance to other roots, to the boundary)``, capped
+root width ``h_j``      ``f * min(distance to other roots, to the boundary)`` (``Forest.clearance``),
+                        capped
 workspace width ``h_0`` ``workspace_fraction`` (0.8) times the workspace's inscribed radius (its map
                         acts after the inner discs have become points: see ``SphereToPoint``)
 ``rho_j``               ``rho_fraction`` (0.5) times the root's inscribed radius
@@ -225,25 +226,19 @@ class NavigationFunction:
         base = replace(base, **overrides) if overrides else base
         frac, cap = base.width_fraction, base.width_cap
         m = len(f.obstacles)
-        depth = np.asarray(f.depth, dtype=int)
         purge = np.full(m, np.nan)
         for level in f.levels():
-            d = depth[level[0]]
-            present = np.nonzero(depth <= d)[0]
             for i in level:
-                others = [k for k in present if k != i and k != f.parent[i]]
-                clear = [np.inf] + list(f.distances[i, others])
-                # the shell must not reach the workspace boundary: beyond the leaf (a workspace
-                # child, along its purge rays) or anywhere (an inner leaf)
-                clear.append(f.far_gap[i] if f.parent[i] == WORKSPACE else f.wall_distance[i])
+                # the shell must not reach another obstacle present at its purge, nor the workspace
+                # boundary: beyond the leaf (a workspace child, along its purge rays) or anywhere
+                # (an inner leaf); Forest.clearance is the smallest of these distances
                 size = 2.0 * f.obstacles[i].bounding_radius
-                purge[i] = min(frac * min(clear), cap, size)
+                purge[i] = min(frac * f.clearance[i], cap, size)
         roots = list(f.roots)
         root_w, rho, delta = [], [], []
         for j in roots:
-            clear = [f.wall_distance[j]] + [f.distances[j, k] for k in roots if k != j]
             sq = f.obstacles[j]
-            h = min(frac * min(clear), cap, 2.0 * sq.bounding_radius)
+            h = min(frac * f.clearance[j], cap, 2.0 * sq.bounding_radius)
             r_in = sq.inscribed_radius
             root_w.append(h)
             rho.append(base.rho_fraction * r_in)

@@ -181,8 +181,9 @@ class TestStructure:
         assert build_forest(WS, [big, small]).roots == (0,)
 
     def test_arrays_are_read_only(self, comb):
-        with pytest.raises(ValueError):
-            comb.center[0, 0] = 1.0
+        for name in ("center", "center_depth", "distances", "wall_distance", "far_gap", "clearance"):
+            with pytest.raises(ValueError):
+                getattr(comb, name)[0, ...] = 1.0
 
     def test_empty(self):
         f = build_forest(WS, [])
@@ -250,6 +251,46 @@ class TestDistances:
             brute = min(d.min(), b.distance(a.point_at(fine)).min())
             assert comb.distances[i, j] <= brute + 1e-12
             assert comb.distances[i, j] >= brute - 1e-8
+
+    def test_gap_bounds_are_lower_bounds_and_tight_for_walls(self):
+        """The rectangle/disc lower bounds never exceed the exact distance (random squircles of
+        every shape and rotation), and are within the corner rounding of it for s = 0.99 (a
+        corner recedes along the diagonal by ``(sqrt 2 - sqrt(2 / (1 + sqrt(1 - s^2))))`` half-extents,
+        under 0.07 of the half diagonal)."""
+        import navigation.forest as F
+
+        rng = np.random.default_rng(11)
+        for trial in range(40):
+            k = 6
+            sq = [Squircle(tuple(rng.uniform(0, 10, 2)), rng.uniform(0.1, 3.0), rng.uniform(0.1, 3.0),
+                           rng.uniform(-np.pi, np.pi), 0.99 if trial % 2 else rng.uniform(0.0, 0.999))
+                  for _ in range(k)]
+            lb = F._gap_bounds(pack(sq))
+            assert lb.shape == (k, k) and np.all(lb >= 0) and np.all(np.diag(lb) == 0)
+            assert np.array_equal(lb, lb.T)
+            for i in range(k):
+                for j in range(i + 1, k):
+                    d = separation(sq[i], sq[j])
+                    assert lb[i, j] <= d + 1e-12, (trial, i, j, lb[i, j], d)
+                    if trial % 2 and d > 0:  # near-rectangles: the bound is close
+                        assert d - lb[i, j] <= 0.07 * (sq[i].bounding_radius + sq[j].bounding_radius)
+
+    @pytest.mark.parametrize("seed", range(8))
+    def test_clearance_is_the_minimum_of_the_exact_distances(self, seed):
+        """Forest.clearance (computed from lower bounds and only the exact distances that can be
+        the minimum) equals the minimum over the full exact distance matrix."""
+        w = random_forest_world(seed, n_obstacles=20 + seed, max_depth=4)
+        f = build_forest(w.workspace, w.obstacles)
+        D, depth = f.distances, np.asarray(f.depth)
+        for i in range(len(f)):
+            if f.parent[i] == NO_PARENT:
+                others = [k for k in f.roots if k != i]
+                base = f.wall_distance[i]
+            else:
+                others = [k for k in np.nonzero(depth <= depth[i])[0] if k != i and k != f.parent[i]]
+                base = f.far_gap[i] if f.parent[i] == WORKSPACE else f.wall_distance[i]
+            want = min([base] + [D[i, k] for k in others])
+            assert f.clearance[i] == pytest.approx(want, abs=1e-12), i
 
     def test_known_gaps(self):
         f = build_forest(WS, [wall(3.0, 3.0, 1.0), wall(3.0, 3.5, 1.0), Squircle((6.0, 3.0), 1.0, 1.0, 0.0, 0.0)])
@@ -516,7 +557,7 @@ class TestFastPathsMatchReferences:
 def _assert_same_forest(a: Forest, b: Forest) -> None:
     for name in ("obstacles", "source_index", "dropped", "parent", "children", "depth", "roots", "tree_of"):
         assert getattr(a, name) == getattr(b, name), name
-    for name in ("center", "center_depth", "distances", "wall_distance", "far_gap"):
+    for name in ("center", "center_depth", "distances", "wall_distance", "far_gap", "clearance"):
         assert np.allclose(getattr(a, name), getattr(b, name), rtol=0, atol=1e-12), name
 
 
