@@ -154,8 +154,6 @@ class Forest:
     center_depth : ndarray, shape (M,)
         ``min`` of the depths of ``center[i]`` in ``O_i`` and in its parent (outside the
         workspace for workspace children); a root's depth inside itself.
-    wall_distance : ndarray, shape (M,)
-        Distance to the workspace boundary (0 for obstacles that cross it).
     far_gap : ndarray, shape (M,)
         For a child of the workspace: the smallest distance, along the rays from its common
         centre on which it reaches into the workspace, from its boundary to the workspace
@@ -168,9 +166,13 @@ class Forest:
         otherwise); for an interior root, the distance to the nearest other root and to the
         workspace boundary. ``inf`` when nothing bounds it.
     distances : ndarray, shape (M, M)
-        Euclidean distance between obstacles (0 where they overlap and on the diagonal). Not
-        needed to build the navigation function (``clearance`` is), so computed on first
-        access (exact, memoised) rather than at construction.
+        Euclidean distance between obstacles (0 where they overlap and on the diagonal).
+    wall_distance : ndarray, shape (M,)
+        Distance to the workspace boundary (0 for obstacles that cross it).
+
+    ``distances`` and ``wall_distance`` are not needed to build the navigation function
+    (``clearance`` is), so they are computed on first access (exact, memoised) rather than at
+    construction.
     """
 
     workspace: Squircle
@@ -184,7 +186,6 @@ class Forest:
     tree_of: tuple[int, ...]
     center: np.ndarray
     center_depth: np.ndarray
-    wall_distance: np.ndarray
     far_gap: np.ndarray
     clearance: np.ndarray
     _lazy: dict = field(default_factory=dict, repr=False)
@@ -206,6 +207,20 @@ class Forest:
                 d[I, J] = d[J, I] = _distances(_bodies(self.obstacles, _SAMPLES), I, J)
             d.flags.writeable = False
             self._lazy["distances"] = d
+        return d
+
+    @property
+    def wall_distance(self) -> np.ndarray:
+        """Distance of every obstacle to the workspace boundary ``(M,)`` (see the class docstring)."""
+        d = self._lazy.get("wall_distance")
+        if d is None:
+            d = np.zeros(len(self.obstacles))
+            inner = np.array([i for i, p in enumerate(self.parent) if p != WORKSPACE], dtype=np.intp)
+            if inner.size:
+                bodies = _bodies(self.obstacles, _SAMPLES) + _bodies([self.workspace], _WS_SAMPLES)
+                d[inner] = _distances(bodies, inner, np.full(inner.size, len(self.obstacles)))
+            d.flags.writeable = False
+            self._lazy["wall_distance"] = d
         return d
 
     @property
@@ -432,6 +447,30 @@ def _gap_bounds(P: np.ndarray) -> np.ndarray:
     out = np.maximum(rect, disc)
     np.fill_diagonal(out, 0.0)
     return np.maximum(out, 0.0)
+
+
+def _wall_bounds(P: np.ndarray, ws: _Body) -> np.ndarray:
+    """Lower bounds ``(K,)`` of the distances from squircles ``P (K, 7)`` inside the workspace
+    to its boundary.
+
+    The polygon through the workspace's boundary samples lies inside it, so the distance from
+    a point to the polygon's boundary bounds its distance to the workspace boundary from below;
+    a squircle lies inside its bounding rectangle, whose distance to the boundary of a convex
+    polygon containing it is the smallest slack of its corners over the polygon's edges. 0
+    where a corner is not inside the polygon.
+    """
+    v = ws.pts  # counter-clockwise boundary samples
+    e = np.roll(v, -1, axis=0) - v
+    a = np.stack((e[:, 1], -e[:, 0]), axis=1)
+    a /= np.linalg.norm(a, axis=1, keepdims=True)
+    b = (a * v).sum(-1)
+    sx = np.array([1.0, -1.0, -1.0, 1.0])
+    sy = np.array([1.0, 1.0, -1.0, -1.0])
+    lx, ly = sx[None] * P[:, HW, None], sy[None] * P[:, HH, None]
+    cx = P[:, CX, None] + P[:, COS, None] * lx - P[:, SIN, None] * ly  # (K, 4)
+    cy = P[:, CY, None] + P[:, SIN, None] * lx + P[:, COS, None] * ly
+    slack = b[None, None, :] - cx[..., None] * a[:, 0] - cy[..., None] * a[:, 1]  # (K, 4, n)
+    return np.maximum(slack.min(axis=(1, 2)), 0.0)
 
 
 def _pair_distance(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, tol: float = 1e-12):
@@ -1004,27 +1043,30 @@ def _far_gaps(bodies: Sequence[_Body], I: Sequence[int], W: int, centres: np.nda
 
     On ``n`` rays from the centre (evenly spaced directions), those whose exit from the child
     lies inside the workspace: the workspace exit distance minus the child's exit distance
-    (exact ray lengths); the minimum over them (memoised per child and workspace).
+    (exact ray lengths); the minimum over them (memoised per child and workspace; the children
+    not memoised are traced together, two ray-length calls for all of them).
     """
-    out = np.empty(len(I))
     ws = bodies[W]
-    for k, (i, c) in enumerate(zip(I, centres)):
-        key = ("far", bodies[i].sq, ws.sq)
-        g = _PAIRS.get(key)
-        if g is None:
-            a = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
-            u = np.stack((np.cos(a), np.sin(a)), axis=1)
-            o = np.broadcast_to(c, (n, 2))
-            r_leaf = ray_length_packed(np.broadcast_to(bodies[i].row, (n, 7)), o, u)
-            tip = o + r_leaf[:, None] * u
-            inside = _beta(ws.row[None], tip[None])[0] < 0
-            if inside.any():
-                r_exit = ray_length_packed(np.broadcast_to(ws.row, (int(inside.sum()), 7)), o[inside], u[inside])
-                g = float(np.min(r_exit - r_leaf[inside]))
-            else:
-                g = math.inf
-            _PAIRS.put(key, g)
-        out[k] = g
+    keys = [("far", bodies[i].sq, ws.sq) for i in I]
+    out = np.array([_PAIRS.get(k) for k in keys], dtype=float)  # None -> nan
+    todo = np.nonzero(np.isnan(out))[0]
+    if todo.size:
+        k = todo.size
+        a = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
+        u = np.tile(np.stack((np.cos(a), np.sin(a)), axis=1), (k, 1))  # (k n, 2)
+        o = np.repeat(np.asarray(centres, float)[todo], n, axis=0)
+        rows = np.repeat(np.stack([bodies[I[t]].row for t in todo]), n, axis=0)
+        r_leaf = ray_length_packed(rows, o, u)
+        tip = o + r_leaf[:, None] * u
+        inside = _beta(ws.row[None], tip[None])[0] < 0
+        gap = np.full(k * n, np.inf)
+        if inside.any():
+            r_exit = ray_length_packed(np.broadcast_to(ws.row, (int(inside.sum()), 7)), o[inside], u[inside])
+            gap[inside] = r_exit - r_leaf[inside]
+        g = gap.reshape(k, n).min(axis=1)
+        for t, v in zip(todo, g):
+            out[t] = v
+            _PAIRS.put(keys[t], float(v))
     return out
 
 
@@ -1035,38 +1077,47 @@ def _root_depth(body: _Body) -> float:
     return body.sq.inscribed_radius
 
 
-def _clearances(parent: Sequence[int], depth: Sequence[int], roots: Sequence[int], wall: np.ndarray,
-                far: np.ndarray, bound: np.ndarray, exact: np.ndarray, settle) -> np.ndarray:
+def _clearances(parent: Sequence[int], depth: Sequence[int], roots: Sequence[int], far: np.ndarray,
+                bound: np.ndarray, exact: np.ndarray, settle, wall: np.ndarray, wall_exact: np.ndarray,
+                settle_walls) -> np.ndarray:
     """:attr:`Forest.clearance`: per obstacle, the minimum over its set of relevant obstacles
     (see there) of the exact distances, and of its workspace term.
 
     Only the distances that can be the minimum are computed: in rounds, every obstacle whose
-    smallest current value (exact distance or lower bound from :func:`_gap_bounds`) is a bound
-    below its workspace term gets that pair settled (:func:`settle`, one batch per round), until
-    every minimum is exact. The result equals the minimum over all exact distances.
+    smallest current value (an exact distance, or a lower bound from :func:`_gap_bounds` or
+    :func:`_wall_bounds`) is a bound gets that pair or wall distance settled (``settle``,
+    ``settle_walls``: one batch each per round), until every minimum is exact. The result
+    equals the minimum over all exact distances.
     """
     m = len(parent)
     depth = np.asarray(depth)
-    others, base = [], np.full(m, np.inf)
+    others = []
     for i in range(m):
         if parent[i] == NO_PARENT:
             S = [k for k in roots if k != i]
-            base[i] = wall[i]
         else:
             S = [k for k in np.nonzero(depth <= depth[i])[0] if k != i and k != parent[i]]
-            base[i] = far[i] if parent[i] == WORKSPACE else wall[i]
         others.append(np.asarray(S, dtype=np.intp))
+    on_wall = np.array([p != WORKSPACE for p in parent], bool)  # workspace term: wall (else far gap)
+
+    def base(i: int) -> float:
+        return wall[i] if on_wall[i] else far[i]
+
     while True:
-        need = []
+        pairs, walls = [], []
         for i, S in enumerate(others):
-            if S.size:
-                k = S[np.argmin(bound[i, S])]
-                if not exact[i, k] and bound[i, k] < base[i]:
-                    need.append((min(i, k), max(i, k)))
-        if not need:
+            k = S[np.argmin(bound[i, S])] if S.size else -1
+            vb = bound[i, k] if k >= 0 else math.inf
+            if vb < base(i):
+                if not exact[i, k]:
+                    pairs.append((min(i, k), max(i, k)))
+            elif on_wall[i] and not wall_exact[i]:
+                walls.append(i)
+        if not pairs and not walls:
             break
-        settle(need)
-    out = base.copy()
+        settle(pairs)
+        settle_walls(walls)
+    out = np.array([base(i) for i in range(m)], dtype=float)
     for i, S in enumerate(others):
         if S.size:
             out[i] = min(out[i], float(bound[i, S].min()))
@@ -1219,9 +1270,20 @@ def build_forest(workspace: Squircle, obstacles: Sequence[Squircle], *, min_gap:
     I, J = np.nonzero(np.triu(bound < min_gap, 1))
     settle((a, b) for a, b in zip(I, J) if (a, b) not in edge_set)
     wall = np.zeros(m)
+    wall_exact = np.ones(m, bool)
     inner = [a for a in range(m) if a not in set(ws_children)]
     if inner:
-        wall[inner] = _distances(bodies, np.array([keep[a] for a in inner]), np.full(len(inner), W))
+        wall[inner] = _wall_bounds(rows[inner], bodies[W])
+        wall_exact[inner] = False
+
+    def settle_walls(idx) -> None:
+        """Replace the wall bounds of obstacles ``idx`` by exact distances (memoised)."""
+        idx = np.array(sorted({a for a in idx if not wall_exact[a]}), dtype=np.intp)
+        if idx.size:
+            wall[idx] = _distances(bodies, np.array([keep[a] for a in idx]), np.full(idx.size, W))
+            wall_exact[idx] = True
+
+    settle_walls(a for a in inner if wall[a] < min_gap)
 
     close = [(a, b, bound[a, b]) for a, b in zip(I, J) if (a, b) not in edge_set and bound[a, b] < min_gap]
     if close:
@@ -1296,8 +1358,8 @@ def build_forest(workspace: Squircle, obstacles: Sequence[Squircle], *, min_gap:
     ws_kids = [i for i in nonroot if parent[i] == WORKSPACE]
     if ws_kids:
         far[ws_kids] = _far_gaps(bodies, [keep[i] for i in ws_kids], W, center[ws_kids])
-    clearance = _clearances(parent, depth, roots, wall, far, bound, exact, settle)
-    for arr in (center, cdepth, wall, far, clearance):
+    clearance = _clearances(parent, depth, roots, far, bound, exact, settle, wall, wall_exact, settle_walls)
+    for arr in (center, cdepth, far, clearance):
         arr.flags.writeable = False
     return Forest(
         workspace=workspace,
@@ -1311,7 +1373,6 @@ def build_forest(workspace: Squircle, obstacles: Sequence[Squircle], *, min_gap:
         tree_of=tuple(tree_of),
         center=center,
         center_depth=cdepth,
-        wall_distance=wall,
         far_gap=far,
         clearance=clearance,
     )

@@ -275,6 +275,23 @@ class TestDistances:
                     if trial % 2 and d > 0:  # near-rectangles: the bound is close
                         assert d - lb[i, j] <= 0.07 * (sq[i].bounding_radius + sq[j].bounding_radius)
 
+    def test_wall_bounds_are_lower_bounds(self):
+        """The inscribed-polygon bound of the distance to the workspace boundary never exceeds
+        the exact distance, and is within the bounding rectangle's corners of it."""
+        import navigation.forest as F
+
+        rng = np.random.default_rng(12)
+        ws = F._Body(WS, F._WS_SAMPLES)
+        sq = [Squircle(tuple(rng.uniform(2, 8, 2)), rng.uniform(0.1, 2.0), rng.uniform(0.1, 2.0),
+                       rng.uniform(-np.pi, np.pi), rng.uniform(0.0, 0.999)) for _ in range(60)]
+        lb = F._wall_bounds(pack(sq), ws)
+        f = build_forest(WS, [sq[0]])
+        for k, s in enumerate(sq):
+            exact = build_forest(WS, [s]).wall_distance[0]
+            assert 0.0 <= lb[k] <= exact + 1e-12, (k, lb[k], exact)
+            assert exact - lb[k] <= 0.3 * s.bounding_radius + 1e-3  # a disc: its square corners
+        assert f.wall_distance.shape == (1,)
+
     @pytest.mark.parametrize("seed", range(8))
     def test_clearance_is_the_minimum_of_the_exact_distances(self, seed):
         """Forest.clearance (computed from lower bounds and only the exact distances that can be
