@@ -357,27 +357,41 @@ class _Body:
     __slots__ = ("sq", "row", "psi", "pts", "w0", "spacing", "radius")
 
     def __init__(self, sq: Squircle, n: int, _arrays=None):
-        """``_arrays``: this squircle's ``(row, psi, pts)`` row of a :func:`_sample_rows` batch."""
+        """``_arrays``: this squircle's ``(row, psi, pts, w0, spacing)`` row of a
+        :func:`_sample_rows` batch."""
         if _arrays is None:
             _arrays = tuple(a[0] for a in _sample_rows(pack([sq]), n))
         self.sq = sq
-        self.row, self.psi, self.pts = _arrays
-        gaps = np.diff(np.concatenate((self.psi, [self.psi[0] + 2.0 * np.pi])))
-        self.w0 = 1.5 * float(gaps.max())
-        self.spacing = float(np.max(np.linalg.norm(self.pts - np.roll(self.pts, 1, axis=0), axis=1)))
+        self.row, self.psi, self.pts, w0, spacing = _arrays
+        self.w0, self.spacing = float(w0), float(spacing)
         self.radius = sq.bounding_radius
 
 
-def _sample_rows(P: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _sample_rows(P: np.ndarray, n: int):
     """``n`` boundary angles per squircle row of ``P (K, 7)``, evenly spaced in arc length (as
-    :meth:`Squircle.boundary_psi`: arc length on ``8 n`` chords, inverted by interpolation), and
-    their points: ``(P, psi (K, n), pts (K, n, 2))``, all rows at once."""
-    fine = np.linspace(0.0, 2 * np.pi, 8 * n + 1)
-    pts = _xy(P, np.broadcast_to(fine, (len(P), len(fine))))
+    :meth:`Squircle.boundary_psi`: arc length on ``8 n`` chords, inverted by linear
+    interpolation), their points, and per row the search window ``w0`` (1.5 x the largest
+    angle gap) and the sample ``spacing`` (largest chord): ``(P, psi (K, n), pts (K, n, 2),
+    w0 (K,), spacing (K,))``, all rows at once."""
+    K, F = len(P), 8 * n + 1
+    fine = np.linspace(0.0, 2 * np.pi, F)
+    pts = _xy(P, np.broadcast_to(fine, (K, F)))
     seg = np.hypot(*np.moveaxis(np.diff(pts, axis=1), -1, 0))
-    arc = np.concatenate((np.zeros((len(P), 1)), np.cumsum(seg, axis=1)), axis=1)
-    psi = np.stack([np.interp(np.linspace(0.0, a[-1], n, endpoint=False), a, fine) for a in arc])
-    return P, psi, _xy(P, psi)
+    arc = np.concatenate((np.zeros((K, 1)), np.cumsum(seg, axis=1)), axis=1)
+    u = arc / arc[:, -1:]  # normalised arc length, 0 .. 1 per row
+    # invert all rows at once: row k's nodes shifted by 2k keep the flattened array sorted
+    off = 2.0 * np.arange(K)[:, None]
+    target = np.arange(n) / n
+    pos = np.searchsorted((u + off).ravel(), (target[None, :] + off).ravel(), side="right") - 1
+    idx = np.clip(pos.reshape(K, n) - F * np.arange(K)[:, None], 0, F - 2)
+    u0 = np.take_along_axis(u, idx, axis=1)
+    u1 = np.take_along_axis(u, idx + 1, axis=1)
+    frac = (target[None, :] - u0) / np.where(u1 > u0, u1 - u0, 1.0)
+    psi = fine[idx] + frac * (fine[1] - fine[0])
+    out = _xy(P, psi)
+    gaps = np.diff(np.concatenate((psi, psi[:, :1] + 2.0 * np.pi), axis=1), axis=1)
+    spacing = np.linalg.norm(out - np.roll(out, 1, axis=1), axis=2).max(axis=1)
+    return P, psi, out, 1.5 * gaps.max(axis=1), spacing
 
 
 def _bodies(squircles: Sequence[Squircle], n: int) -> list["_Body"]:
@@ -385,9 +399,9 @@ def _bodies(squircles: Sequence[Squircle], n: int) -> list["_Body"]:
     out = [_BODIES.get((sq, n)) for sq in squircles]
     todo = [k for k, b in enumerate(out) if b is None]
     if todo:
-        P, psi, pts = _sample_rows(pack([squircles[k] for k in todo]), n)
+        arrays = _sample_rows(pack([squircles[k] for k in todo]), n)
         for t, k in enumerate(todo):
-            out[k] = _Body(squircles[k], n, (P[t], psi[t], pts[t]))
+            out[k] = _Body(squircles[k], n, tuple(a[t] for a in arrays))
             _BODIES.put((squircles[k], n), out[k])
     return out
 
@@ -714,6 +728,11 @@ def _max_min_slack(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarray,
     c = np.stack((px[np.arange(E), k], py[np.arange(E), k]), axis=1)
     tau = 0.05 * scale
     for _ in range(stages):
+        # trust radius: the optimum moves by a few of the previous stage's tau between stages;
+        # it grows after a full step and shrinks to the accepted length after backtracking, so
+        # Newton steps stretched along flat directions of the soft minimum are not halved anew
+        # at every iteration
+        radius = np.minimum(scale, 64.0 * tau)
         f, w, _ = _soft_min(ax, ay, b, c, tau)
         act = np.arange(E)
         for _ in range(steps):
@@ -729,15 +748,17 @@ def _max_min_slack(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarray,
             act, step, length = act[keep], step[keep], length[keep]
             if act.size == 0:
                 break
-            step *= np.minimum(1.0, scale[act] / length)[:, None]
-            todo, st = act, step
+            step *= np.minimum(1.0, radius[act] / length)[:, None]
+            todo, st, full = act, step, np.ones(len(act), bool)
             for _ in range(30):  # backtracking
                 ft, wt, _ = _soft_min(ax[todo], ay[todo], b[todo], c[todo] + st, tau[todo])
                 ok = ft >= f[todo]
                 acc = todo[ok]
                 c[acc] += st[ok]
                 f[acc], w[acc] = ft[ok], wt[ok]
-                todo, st = todo[~ok], 0.5 * st[~ok]
+                taken = np.hypot(st[ok, 0], st[ok, 1])
+                radius[acc] = np.where(full[ok], np.minimum(2.0 * radius[acc], scale[acc]), taken)
+                todo, st, full = todo[~ok], 0.5 * st[~ok], np.zeros(int((~ok).sum()), bool)
                 if todo.size == 0:
                     break
         tau = 0.125 * tau
