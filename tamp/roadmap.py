@@ -166,11 +166,19 @@ def _misses(P: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     for _ in range(_BISECTION_STEPS):
         if act.size == 0:
             break
-        width = hi - lo
-        bound = np.maximum(flo + glo * width, fhi - ghi * width)
+        # the tangent lines at the bracket ends, flo + glo (t - lo) (falling) and
+        # fhi + ghi (t - hi) (rising), cross at t* in [lo, hi]; the convex beta lies above both,
+        # so their value there is a lower bound of beta on the bracket
+        denom = ghi - glo
+        tstar = np.clip((flo - fhi + ghi * hi - glo * lo) / denom, lo, hi)
+        bound = np.maximum(flo + glo * (tstar - lo), fhi + ghi * (tstar - hi))
         ok = bound > 0
         out[act[ok]] = True
-        mid = 0.5 * (lo + hi)
+        # split where the derivative's chord vanishes (the minimiser of a quadratic: beta of an
+        # ellipse is one), kept a quarter of the width from either end so that the bracket
+        # shrinks by at least a quarter per step
+        width = hi - lo
+        mid = np.clip(lo - glo * width / denom, lo + 0.25 * width, hi - 0.25 * width)
         fm, gm = _line_beta(P[act], a[act], d[act], mid)
         keep = ~ok & (fm > 0)
         left = gm < 0  # minimum right of mid
@@ -292,6 +300,7 @@ class Roadmap:
     owner: np.ndarray
     pairs: np.ndarray
     _adj: tuple = field(repr=False)
+    _memo: dict = field(default_factory=dict, repr=False)  # per-roadmap tables of the searches
 
     # ------------------------------------------------------------------ construction
     @classmethod
