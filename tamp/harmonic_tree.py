@@ -53,12 +53,13 @@ Symbols
 from __future__ import annotations
 
 import enum
-import heapq
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import dijkstra
 
 from navigation.errors import TampError
 from navigation.geometry import beta_rows, pack
@@ -310,9 +311,12 @@ def _terminal(rm: Roadmap, q: np.ndarray, start, goal, reason: TreeFailure) -> _
     m = len(rm.obstacles)
     amounts = np.full(m, r + b)
     rows = rm.P.copy()
-    if not (rm.workspace.beta(q) < 0 and -float(rm.workspace.distance(q)) > r):
+    # W' (the workspace shrunk by r + b) lies inside the workspace shrunk by r: a point of W'
+    # needs no exact distance
+    in_free = bool(rm.free_workspace.beta(q) < 0)
+    if not in_free and not (rm.workspace.beta(q) < 0 and -float(rm.workspace.distance(q)) > r):
         raise NoTreePathError(start, goal, reason, "outside the workspace shrunk by the robot radius")
-    if rm.free_workspace.beta(q) >= 0:
+    if not in_free:
         c = -float(rm.workspace.distance(q)) - r
         level = min(b, 0.5 * c)
         for _ in range(_HALVINGS):
@@ -419,78 +423,106 @@ def plan_tree(roadmap: Roadmap, start, goal, weights: RotationWeights | None = N
     return _astar(pb, weights, n_headings)
 
 
+def _heading_graph(rm: Roadmap, H: int, weights: RotationWeights):
+    """The search graph of the harmonic trees of ``rm`` without terminals, as CSR arrays.
+
+    Eq. 26 on a roadmap edge ``e = (i -> j)`` from heading ``h`` to heading ``h'`` costs
+    ``d_e + w1 |angle_e - theta_h| + w2 |angle_e - theta_h'|``: the sum of a part that depends
+    on ``h`` and one that depends on ``h'``. So every directed edge gets a node ``E_e`` with
+    edges ``(i, h) -> E_e`` (``d_e + w1 |angle_e - theta_h|``) and ``E_e -> (j, h')``
+    (``w2 |angle_e - theta_h'|``): the same path costs with ``2 H`` instead of ``H^2`` edges per
+    roadmap edge. Node ids: ``(i, h) -> i H + h``, ``E_e -> n H + e``, the goal ``n H + n_E``, the
+    start ``n H + n_E + 1`` (last, so its row is appended per tree). Every ``(i, h)`` row ends
+    with an edge to the goal whose cost a tree sets (``inf``: not visible). Cached per roadmap,
+    heading count and weights (data) and per roadmap and heading count (structure).
+    """
+    key = ("graph", H)
+    struct = rm._memo.get(key)
+    indptr_v, dst, length, angle = rm._adj
+    n, n_e = len(rm.points), len(dst)
+    if struct is None:
+        theta = headings(H)
+        table = _wrap_abs(angle[:, None] - theta[None, :])  # (n_e, H)
+        deg = np.diff(indptr_v)
+        # rows (i, h): the out-edge nodes of i, then the goal
+        row_len = np.concatenate([np.repeat(deg + 1, H), np.full(n_e, H), [0]])
+        indptr = np.concatenate([[0], np.cumsum(row_len)])
+        n_v = n * H
+        idx_v = np.empty(int(indptr[n_v]), dtype=np.int32)
+        goal_pos = indptr[1:n_v + 1] - 1
+        mask = np.ones(len(idx_v), dtype=bool)
+        mask[goal_pos] = False
+        # within row (i, h) the edge nodes n H + e for e in indptr_v[i] .. indptr_v[i + 1]
+        src_edges = [np.arange(indptr_v[i], indptr_v[i + 1]) for i in range(n)]
+        idx_v[mask] = np.concatenate([np.tile(e, H) for e in src_edges] + [np.zeros(0, np.intp)]) + n_v
+        idx_v[goal_pos] = n_v + n_e
+        # which table entry each (i, h) -> E_e edge uses: (e, h)
+        e_of = np.concatenate([np.tile(e, H) for e in src_edges] + [np.zeros(0, np.intp)])
+        h_of = np.concatenate([np.repeat(np.arange(H), d) for d in deg] + [np.zeros(0, np.intp)])
+        idx_e = ((dst[:, None] * H) + np.arange(H)[None, :]).ravel().astype(np.int32)
+        struct = {"theta": theta, "table": table, "indptr": indptr.astype(np.int32),
+                  "indices": np.concatenate([idx_v, idx_e]).astype(np.int32), "goal_pos": goal_pos,
+                  "mask": mask, "e_of": e_of, "h_of": h_of, "n_v": n_v, "n_e": n_e, "data": {}}
+        rm._memo[key] = struct
+    wkey = (weights.w1, weights.w2)
+    data = struct["data"].get(wkey)
+    if data is None:
+        table = struct["table"]
+        dv = np.full(len(struct["mask"]), np.inf)
+        dv[struct["mask"]] = length[struct["e_of"]] + weights.w1 * table[struct["e_of"], struct["h_of"]]
+        data = np.concatenate([dv, (weights.w2 * table).ravel()])
+        if len(struct["data"]) > 4:
+            struct["data"].clear()
+        struct["data"][wkey] = data
+    return struct, data
+
+
 def _astar(pb: _Problem, weights: RotationWeights, H: int) -> HarmonicTree:
+    """Shortest path of eq. 8 from the start pose to the goal pose over ``(vertex, heading)``
+    nodes (:func:`_heading_graph` plus this tree's terminal edges), by Dijkstra's algorithm
+    (``scipy.sparse.csgraph.dijkstra``, compiled). Every edge costs at least its length, so the
+    A* heuristic ``|q - q_G|`` would not change the optimum, only the work.
+    """
     rm = pb.rm
     w1, w2 = weights.w1, weights.w2
     n = len(rm.points)
-    S, G = n * H, n * H + 1
-    theta = pb.theta
-    g_score = np.full(n * H + 2, np.inf)
-    parent = np.full(n * H + 2, -1, dtype=np.intp)
-    closed = np.zeros(n * H + 2, dtype=bool)
+    struct, data = _heading_graph(rm, H, weights)
+    theta = struct["theta"]
+    n_v, n_e = struct["n_v"], struct["n_e"]
+    G, S = n_v + n_e, n_v + n_e + 1
+    th0, thG = float(pb.start[2]), float(pb.goal[2])
     qg = pb.goal[:2]
-    hv = np.linalg.norm(rm.points - qg, axis=1) if n else np.zeros(0)
-    goal_edge = {int(v): (float(l), float(a)) for v, l, a in zip(*pb.to_goal)}
-    heap = [(float(np.linalg.norm(pb.start[:2] - qg)), 0.0, S)]
-    g_score[S] = 0.0
-    expanded = 0
-    th0, thG = pb.start[2], pb.goal[2]
-
-    def relax(base_g, js, lengths, angles, th_from):
-        """Edges from a node with heading ``th_from`` at cost ``base_g`` to ``js x headings``."""
-        if len(js) == 0:
-            return
-        c = base_g + lengths + w1 * _wrap_abs(angles - th_from)
-        cost = c[:, None] + w2 * _wrap_abs(angles[:, None] - theta[None, :])
-        ids = (js[:, None] * H + np.arange(H)[None, :]).ravel()
-        cost = cost.ravel()
-        better = cost < g_score[ids]
-        if not better.any():
-            return
-        ids, cost = ids[better], cost[better]
-        g_score[ids] = cost
-        parent[ids] = node
-        f = cost + hv[ids // H]
-        for fi, ci, ii in zip(f.tolist(), cost.tolist(), ids.tolist()):
-            heapq.heappush(heap, (fi, ci, ii))
-
-    def relax_goal(base_g, length, angle, th_from):
-        phi = angle if length > 0 else thG
-        c = base_g + length + w1 * float(_wrap_abs(phi - th_from)) + w2 * float(_wrap_abs(phi - thG))
-        if c < g_score[G]:
-            g_score[G] = c
-            parent[G] = node
-            heapq.heappush(heap, (c, c, G))
-
-    while heap:
-        f, gcost, node = heapq.heappop(heap)
-        if closed[node] or gcost > g_score[node]:
-            continue
-        closed[node] = True
-        expanded += 1
-        if node == G:
-            break
-        if node == S:
-            relax(0.0, *pb.from_start, th0)
-            if pb.direct:
-                d = float(np.linalg.norm(qg - pb.start[:2]))
-                ang = math.atan2(qg[1] - pb.start[1], qg[0] - pb.start[0])
-                relax_goal(0.0, d, ang, th0)
-            continue
-        i, h = divmod(node, H)
-        js, lengths, angles = rm.neighbours(i)
-        relax(gcost, js, lengths, angles, theta[h])
-        ge = goal_edge.get(i)
-        if ge is not None:
-            relax_goal(gcost, ge[0], ge[1], theta[h])
-    if not closed[G]:
+    data = data.copy()
+    # vertex -> goal edges: d + w1 |phi - theta_h| + w2 |phi - theta_G| (phi = thG on a zero-length edge)
+    vg, lg, ag = pb.to_goal
+    if len(vg):
+        phi = np.where(lg > 0, ag, thG)
+        c = (lg + w2 * _wrap_abs(phi - thG))[:, None] + w1 * _wrap_abs(phi[:, None] - theta[None, :])
+        data[struct["goal_pos"][(vg[:, None] * H + np.arange(H)[None, :]).ravel()]] = c.ravel()
+    # start row: start -> (j, h') and start -> goal
+    js, ls, angs = pb.from_start
+    cols = [(js[:, None] * H + np.arange(H)[None, :]).ravel()]
+    vals = [((ls + w1 * _wrap_abs(angs - th0))[:, None] + w2 * _wrap_abs(angs[:, None] - theta[None, :])).ravel()]
+    if pb.direct:
+        d = float(np.linalg.norm(qg - pb.start[:2]))
+        phi = math.atan2(qg[1] - pb.start[1], qg[0] - pb.start[0]) if d > 0 else thG
+        cols.append(np.array([G]))
+        vals.append(np.array([d + w1 * float(_wrap_abs(phi - th0)) + w2 * float(_wrap_abs(phi - thG))]))
+    cols, vals = np.concatenate(cols).astype(np.int32), np.concatenate(vals)
+    order = np.argsort(cols, kind="stable")
+    indptr = np.concatenate([struct["indptr"], [struct["indptr"][-1] + len(cols)]]).astype(np.int32)
+    graph = csr_matrix((np.concatenate([data, vals[order]]), np.concatenate([struct["indices"], cols[order]]),
+                        indptr), shape=(S + 1, S + 1))
+    dist, pred = dijkstra(graph, directed=True, indices=S, return_predecessors=True)
+    if not np.isfinite(dist[G]):
         raise NoTreePathError(pb.start, pb.goal, TreeFailure.DISCONNECTED,
-                              f"{n} roadmap vertices, {len(rm.pairs)} edges, {expanded} nodes expanded")
-    # path reconstruction
+                              f"{n} roadmap vertices, {len(rm.pairs)} edges")
+    expanded = int(np.count_nonzero(np.isfinite(dist[:n_v])))
+    # path reconstruction (edge nodes skipped)
     chain = [G]
     while chain[-1] != S:
-        chain.append(int(parent[chain[-1]]))
-    chain.reverse()
+        chain.append(int(pred[chain[-1]]))
+    chain = [v for v in reversed(chain) if v < n_v or v >= G]
     poses, verts = [], []
     for node in chain:
         if node == S:
