@@ -86,7 +86,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from navigation.control import ControllerConfig, track_waypoints
+from navigation.control import ControllerConfig, switch_weight, track_waypoints
 from navigation.errors import ForestError, NavigationError, TampError, WorldError
 from navigation.forest import build_forest
 from navigation.geometry import Squircle, beta_rows, pack
@@ -102,7 +102,7 @@ from .harmonic_tree import NoTreePathError, RotationWeights, TreeFailure, plan_t
 from .ltl import ops
 from .navmap import START, Node
 from .planner import MissionMode, MissionPlanner, Plan
-from .roadmap import Roadmap, RoadmapConfig, segments_clear
+from .roadmap import Roadmap, RoadmapConfig, _point_segment_distance, grown, segments_clear
 
 __all__ = ["Executive", "ExecutiveConfig", "ExecutiveState", "TickResult", "RegionError", "RegionRule"]
 
@@ -243,34 +243,78 @@ class TickResult:
 
 # ---------------------------------------------------------------------------------------------
 class _Roads:
-    """A roadmap for one buffer, updated lazily: new shapes wait in ``pending`` until a tree is
-    needed; ``stale`` counts updated/removed shapes it still avoids."""
+    """A roadmap for one buffer over the executive's obstacle model (``model``: key -> shape,
+    known obstacles and perception estimates by id; shared, updated by the executive), brought
+    up to date lazily when a tree is needed (:meth:`current`).
 
-    def __init__(self, workspace: Squircle, radius: float, buffer: float, obstacles):
+    The shapes new since the roadmap was made are added by ``Roadmap.with_obstacles``. A shape
+    the model has replaced or removed stays in the roadmap (a superset of the obstacles is
+    safe, only paths can get longer); it counts as *stale* unless it is replaced by a shape
+    whose buffered squircle covers its own (an estimate that grew: the old shape blocks
+    nothing the new one does not). An update that arrives before the roadmap took the
+    previous version costs nothing: only the model's current shapes are ever added. More than
+    ``rebuild_after`` stale shapes, or :meth:`reset`, rebuild it from the model.
+    """
+
+    def __init__(self, workspace: Squircle, radius: float, buffer: float, model: dict, rebuild_after: int):
         self.workspace, self.radius = workspace, radius
         self.config = RoadmapConfig(buffer=buffer)
+        self.model = model
+        self.rebuild_after = rebuild_after
         self.rm: Roadmap | None = None
-        self.obstacles = list(obstacles)
-        self.pending: list[Squircle] = []
-        self.stale = 0
+        self.applied: dict = {}  # key -> the shape of that key the roadmap has
+        self.stale = 0  # replaced or removed shapes still in the roadmap and not covered
+        self.superseded = 0  # every replaced or removed shape still in the roadmap
+        self.rebuilds = 0
 
     def current(self) -> Roadmap:
+        if self.rm is not None:
+            new = {k: sq for k, sq in self.model.items() if self.applied.get(k) is not sq}
+            gone = [k for k in self.applied if k not in self.model]
+            replaced = [k for k in new if k in self.applied]
+            stale = self.stale + len(gone)
+            if stale <= self.rebuild_after and replaced:
+                amount = self.radius + self.config.buffer
+                stale += sum(not _covers(grown(new[k], amount), grown(self.applied[k], amount)) for k in replaced)
+            if stale > self.rebuild_after:
+                self.rm = None
+            else:
+                if new:
+                    self.rm = self.rm.with_obstacles(list(new.values()))
+                for k in gone:
+                    del self.applied[k]
+                self.applied.update(new)
+                self.stale = stale
+                self.superseded += len(gone) + len(replaced)
         if self.rm is None:
-            self.obstacles += self.pending
-            self.rm = Roadmap.build(self.workspace, self.obstacles, self.radius, self.config)
-            self.pending = []
-        elif self.pending:
-            self.rm = self.rm.with_obstacles(self.pending)
-            self.pending = []
+            self.applied = dict(self.model)
+            self.rm = Roadmap.build(self.workspace, list(self.model.values()), self.radius, self.config)
+            self.stale = self.superseded = 0
+            self.rebuilds += 1
         return self.rm
 
-    def add(self, shapes, stale: int = 0) -> None:
-        self.pending.extend(shapes)
-        self.stale += stale
+    @property
+    def outdated(self) -> bool:
+        """The roadmap avoids a shape the model has replaced or removed (or will, once the
+        model's changes are applied)."""
+        return self.rm is not None and (self.superseded > 0 or any(
+            self.model.get(k) is not sq for k, sq in self.applied.items()))
 
-    def reset(self, obstacles) -> None:
-        self.obstacles = list(obstacles)
-        self.rm, self.pending, self.stale = None, [], 0
+    @property
+    def behind(self) -> bool:
+        """The model has shapes the roadmap does not have yet."""
+        return self.rm is not None and any(self.applied.get(k) is not sq for k, sq in self.model.items())
+
+    def reset(self) -> None:
+        """Rebuild from the model when the roadmap is next needed."""
+        self.rm, self.applied, self.stale, self.superseded = None, {}, 0, 0
+
+
+def _covers(outer: Squircle, inner: Squircle, samples: int = 64) -> bool:
+    """``inner``'s boundary (``samples`` points) lies in ``outer`` (approximately: used only
+    to decide when a roadmap is worth rebuilding, never for safety)."""
+    pts = inner.point_at(2.0 * np.pi * np.arange(samples) / samples)
+    return bool(np.all(outer.beta(pts) <= 0.0))
 
 
 def _pose3(pose) -> tuple[float | None, tuple[float, float, float]]:
@@ -363,9 +407,11 @@ class Executive:
         self._edges_q: list[tuple[float, float]] = []
         self._edges_cost: list[float] = []
         self._edge_t0: float | None = None  # when the robot left the current edge's start
-        self._roads = [_Roads(world.workspace, r, cfg.buffer, known_obs)]
+        # the obstacle model by key: ("known", index) and ("estimate", perception id)
+        self._model: dict = {("known", i): o for i, o in enumerate(known_obs)}
+        self._roads = [_Roads(world.workspace, r, cfg.buffer, self._model, cfg.rebuild_after)]
         if cfg.fallback_buffer < cfg.buffer and cfg.fallback_buffer >= 0:
-            self._roads.append(_Roads(world.workspace, r, cfg.fallback_buffer, known_obs))
+            self._roads.append(_Roads(world.workspace, r, cfg.fallback_buffer, self._model, cfg.rebuild_after))
         self._known_letters = None
         # transitions: key (region a, region b) sorted -> tree or error; "@start" legs separately
         self._pair: dict[tuple[str, str], object] = {}
@@ -692,26 +738,38 @@ class Executive:
             self._note(f"obstacle model refused by the forest construction ({err}); keeping the last forest")
         changed = [est[i].squircle for i in upd.added + upd.updated if i in est]
         stale = len(upd.updated) + len(upd.removed)
-        for roads in self._roads:
-            roads.add(changed, stale)
-            if roads.stale > self.config.rebuild_after:
-                roads.reset(self.obstacles)
+        for i in upd.added + upd.updated:
+            if i in est:
+                self._model[("estimate", i)] = est[i].squircle
+        for i in upd.removed:
+            self._model.pop(("estimate", i), None)
         if changed:
-            rows = pack([inflate(s, self.radius + self.config.check_margin) for s in changed])
-            # the current leg, from the waypoint being tracked on
+            # the current leg (from the waypoint being tracked on) and every evaluated tree
+            paths = []
             if self.leg and self.state is ExecutiveState.EXECUTING:
-                pts = np.array([w[:2] for w in self.leg[max(self.wp - 1, 0):]])
-                if len(pts) >= 2 and not segments_clear(rows, pts[:-1], pts[1:]).all():
-                    self._need_plan = True
-            # evaluated transitions whose trees are hit lose their evaluation
+                paths.append((None, None, np.array([w[:2] for w in self.leg[max(self.wp - 1, 0):]])))
             for store in (self._pair, self._start_pair):
-                for key, tree in list(store.items()):
-                    if isinstance(tree, Exception):
-                        continue
-                    pts = tree.positions
-                    if len(pts) >= 2 and not segments_clear(rows, pts[:-1], pts[1:]).all():
-                        del store[key]
+                paths += [(store, key, tree.positions) for key, tree in store.items()
+                          if not isinstance(tree, Exception)]
+            paths = [(store, key, pts) for store, key, pts in paths if len(pts) >= 2]
+            # a shape whose bounding disc grown by r + margin reaches no segment cannot hit one:
+            # only the others are grown (``inflate``, about 1.5 ms a shape) for the exact test
+            margin = self.radius + self.config.check_margin
+            near = []
+            if paths:
+                a = np.concatenate([pts[:-1] for _, _, pts in paths])
+                b = np.concatenate([pts[1:] for _, _, pts in paths])
+                centres = np.array([sq.center for sq in changed], dtype=float)
+                reach = np.array([sq.bounding_radius for sq in changed]) + margin
+                dist = _point_segment_distance(centres, a, b)  # (segments, shapes)
+                near = [sq for k, sq in enumerate(changed) if (dist[:, k] <= reach[k]).any()]
+            if near:
+                rows = pack([inflate(sq, margin) for sq in near])
+                for store, key, pts in paths:
+                    if not segments_clear(rows, pts[:-1], pts[1:]).all():
                         self._need_plan = True
+                        if store is not None:  # an evaluated transition loses its evaluation
+                            del store[key]
         if stale or self.state is ExecutiveState.BLOCKED:
             # shapes shrank or moved: blocked transitions may have reopened
             blocked = [k for k, t in self._pair.items() if isinstance(t, Exception)]
@@ -720,8 +778,8 @@ class Executive:
                 self.planner.restore_edge(*k)
             if self.state is ExecutiveState.BLOCKED:
                 for roads in self._roads:
-                    if roads.stale:
-                        roads.reset(self.obstacles)
+                    if roads.outdated:
+                        roads.reset()
                 self._need_plan = True
         self._map_time = time.perf_counter() - t0
 
@@ -840,11 +898,11 @@ class Executive:
             try:
                 plan = planner.plan()
             except NoPlanError as err:
-                if not blocked_once and any(r.stale or r.pending for r in self._roads):
+                if not blocked_once and any(r.outdated or r.behind for r in self._roads):
                     # stale shapes may close a passage: rebuild from the current model, retry
                     blocked_once = True
                     for roads in self._roads:
-                        roads.reset(self.obstacles)
+                        roads.reset()
                     for k in [k for k, t in self._pair.items() if isinstance(t, Exception)]:
                         del self._pair[k]
                         planner.restore_edge(*k)
@@ -955,7 +1013,14 @@ class Executive:
         cur = self._field(self.leg[self.wp])
         if cur is None:
             return 0.0, 0.0
-        fol = self._field(self.leg[self.wp + 1]) if self.wp + 1 < len(self.leg) else None
+        # the following waypoint's field only where eq. 25 gives it a weight: eta is exactly 0
+        # farther than about 1 m from the current waypoint, where the blend returns the current
+        # field's direction and the safety limit is the forest's (shared by both fields), i.e.
+        # the command of ``track`` alone; a field is one navigation function (several ms), so
+        # after a map change it is built when the robot comes near, not on the changing tick
+        fol = None
+        if self.wp + 1 < len(self.leg) and switch_weight(float(np.linalg.norm(q - cur.goal)), self.control) > 0.0:
+            fol = self._field(self.leg[self.wp + 1])
         try:
             cmd = track_waypoints(p, cur, fol, self.control)
         except NavigationError as err:
