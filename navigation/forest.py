@@ -702,7 +702,7 @@ def _soft_min(ax: np.ndarray, ay: np.ndarray, b: np.ndarray, q: np.ndarray, tau:
 
 
 def _max_min_slack(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarray, scale: np.ndarray, *,
-                   stages: int = 4, steps: int = 10, grid: int = 9) -> tuple[np.ndarray, np.ndarray]:
+                   stages: int = 4, steps: int = 10, grid: int = 5) -> tuple[np.ndarray, np.ndarray]:
     """Maximise ``t(q) = min_k (b_k - a_k . q)`` per row: the Chebyshev centre of the polygon of
     half-planes ``a (E, K, 2)`` (unit normals), ``b (E, K)``, i.e. a 3-variable linear program.
 
