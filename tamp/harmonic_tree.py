@@ -452,13 +452,15 @@ def _heading_graph(rm: Roadmap, H: int, weights: RotationWeights):
         goal_pos = indptr[1:n_v + 1] - 1
         mask = np.ones(len(idx_v), dtype=bool)
         mask[goal_pos] = False
-        # within row (i, h) the edge nodes n H + e for e in indptr_v[i] .. indptr_v[i + 1]
-        src_edges = [np.arange(indptr_v[i], indptr_v[i + 1]) for i in range(n)]
-        idx_v[mask] = np.concatenate([np.tile(e, H) for e in src_edges] + [np.zeros(0, np.intp)]) + n_v
+        # row (i, h) holds the edge nodes n H + e, e in indptr_v[i] .. indptr_v[i + 1], in order
+        rv = np.repeat(np.arange(n), H)  # vertex of each (i, h) row
+        rd = deg[rv]
+        row_of = np.repeat(np.arange(n_v), rd)  # row of each (i, h) -> E_e entry
+        first = np.cumsum(rd) - rd
+        e_of = indptr_v[rv[row_of]] + (np.arange(int(rd.sum())) - first[row_of])
+        h_of = row_of % H
+        idx_v[mask] = n_v + e_of
         idx_v[goal_pos] = n_v + n_e
-        # which table entry each (i, h) -> E_e edge uses: (e, h)
-        e_of = np.concatenate([np.tile(e, H) for e in src_edges] + [np.zeros(0, np.intp)])
-        h_of = np.concatenate([np.repeat(np.arange(H), d) for d in deg] + [np.zeros(0, np.intp)])
         idx_e = ((dst[:, None] * H) + np.arange(H)[None, :]).ravel().astype(np.int32)
         struct = {"theta": theta, "table": table, "indptr": indptr.astype(np.int32),
                   "indices": np.concatenate([idx_v, idx_e]).astype(np.int32), "goal_pos": goal_pos,
