@@ -375,8 +375,14 @@ def _sample_rows(P: np.ndarray, n: int):
     w0 (K,), spacing (K,))``, all rows at once."""
     K, F = len(P), 8 * n + 1
     fine = np.linspace(0.0, 2 * np.pi, F)
-    pts = _xy(P, np.broadcast_to(fine, (K, F)))
-    seg = np.hypot(*np.moveaxis(np.diff(pts, axis=1), -1, 0))
+    # chord lengths do not depend on position and rotation: the unit squircle's chord vectors
+    # (one per distinct s), scaled by the half-extents
+    seg = np.empty((K, F - 1))
+    for s in np.unique(P[:, S]):
+        rows = P[:, S] == s
+        unit = _xy(np.array([[0.0, 0.0, 1.0, 0.0, 1.0, 1.0, s]]), fine[None])[0]
+        du = np.diff(unit, axis=0)
+        seg[rows] = np.hypot(P[rows, HW, None] * du[:, 0], P[rows, HH, None] * du[:, 1])
     arc = np.concatenate((np.zeros((K, 1)), np.cumsum(seg, axis=1)), axis=1)
     u = arc / arc[:, -1:]  # normalised arc length, 0 .. 1 per row
     # invert all rows at once: row k's nodes shifted by 2k keep the flattened array sorted
