@@ -255,6 +255,18 @@ def _subsample(a: np.ndarray, n: int) -> np.ndarray:
     return a[np.linspace(0, len(a) - 1, n).astype(int)]
 
 
+def _near_free(free: np.ndarray, q: np.ndarray, cfg: PerceptionConfig) -> np.ndarray:
+    """At most ``_MAX_FREE`` free points for a fit, evenly subsampled among those within
+    ``min_unseen + free_cell`` of a point of ``q``: only those can lie inside an estimate of
+    ``q`` (its extent beyond the points is the unseen minimum), and subsampling all of them
+    left most of the ones near a long wall out of the fit (its estimates kept covering free
+    space, and the free space kept triggering refits)."""
+    if len(free) > _MAX_FREE:
+        d, _ = cKDTree(q).query(free, distance_upper_bound=cfg.min_unseen + cfg.free_cell)
+        free = free[np.isfinite(d)]
+    return _subsample(free, _MAX_FREE)
+
+
 def _seeds(points: np.ndarray, views: np.ndarray | None, cfg: PerceptionConfig) -> list[np.ndarray]:
     """Initial parameter vectors from ``minAreaRect`` and ``fitEllipse`` (OpenCV)."""
     P = points.astype(np.float32)
@@ -435,7 +447,7 @@ def fit_squircle(points, *, views=None, free=None, config: PerceptionConfig | No
     fr = np.zeros((0, 2)) if free is None else _check(free, "free")
     qs = _subsample(q, _MAX_POINTS)
     vs = None if vw is None else _subsample(vw, _MAX_POINTS)
-    fs = _subsample(fr, _MAX_FREE)
+    fs = _near_free(fr, qs, cfg)
     if len(q) < 3:  # too few points for a shape: a min_unseen square behind them
         c = q.mean(axis=0)
         if vw is not None:
@@ -796,6 +808,47 @@ def _reusable(f: Fit, q: np.ndarray, free, cfg: PerceptionConfig) -> bool:
     return free is None or not len(free) or float(radial_error(f.squircle, free).min()) >= -cfg.free_tol
 
 
+def _kept(init, q: np.ndarray, vw, free, cfg: PerceptionConfig, errs) -> Fit | None:
+    """The previous estimate (of ``init``) that the data does not contradict and that explains
+    the points as well as when it was fitted: no point more than ``refit_tol`` outside it and no
+    free point deeper than ``free_tol`` inside it (the map's own refit triggers), RMS radial
+    error within ``split_tol`` and 95th percentile within ``3 split_tol`` (the decomposition's
+    criterion), and RMS at most ``1.1`` times (plus 1 mm) the RMS of its own points when it was
+    fitted (``errs``: id -> (squircle, rms), kept in the cluster's cache; an estimate that was
+    trimmed or grown since has no record). It is kept as it is (the same squircle object: no
+    least squares, and the map sees no change, so no inflation and no forest check for it);
+    None when no previous estimate qualifies."""
+    if not init or not errs or len(q) < 3:
+        return None
+    m = q.mean(axis=0)
+    for sq in init:
+        rec = errs.get(id(sq))
+        if rec is None or rec[0] is not sq or math.dist(sq.center, m) > sq.bounding_radius:
+            continue
+        e = radial_error(sq, q)
+        if float(e.max()) > cfg.refit_tol:
+            continue
+        rms = float(np.sqrt(np.mean(e * e)))
+        if rms > min(cfg.split_tol, 1.1 * rec[1] + 1e-3):
+            continue
+        p95 = float(np.percentile(np.abs(e), 95))
+        if p95 > 3 * cfg.split_tol:
+            continue
+        if free is not None and len(free) and float(radial_error(sq, free).min()) < -cfg.free_tol:
+            continue
+        closed = bool(_faces_seen(_params(sq), q, vw).all())
+        return Fit(sq, rms, closed, np.arange(len(q)), p95)
+    return None
+
+
+def _record(cache, sq: Squircle, q: np.ndarray) -> None:
+    """Remember the RMS radial error of the points ``q`` a new estimate ``sq`` was fitted to
+    (for :func:`_kept`)."""
+    if cache is not None:
+        e = radial_error(sq, q)
+        cache.setdefault("err", {})[id(sq)] = (sq, float(np.sqrt(np.mean(e * e))))
+
+
 def _fit_piece(q, vw, free, idx, cfg: PerceptionConfig, init=None, cache=None) -> Fit:
     """:func:`fit_squircle` of the points ``idx`` of a cluster, with the free points near them
     (warm-started from ``init``). With ``cache`` (a dict kept by the caller between refits of
@@ -811,7 +864,10 @@ def _fit_piece(q, vw, free, idx, cfg: PerceptionConfig, init=None, cache=None) -
         prev = cache.get(key)
         if prev is not None and _reusable(prev, q[idx], fr, cfg):
             return Fit(prev.squircle, prev.rms, prev.closed, idx, prev.p95)
-    f = fit_squircle(q[idx], views=None if vw is None else vw[idx], free=fr, config=cfg, init=init)
+    f = _kept(init, q[idx], None if vw is None else vw[idx], fr, cfg, None if cache is None else cache.get("err"))
+    if f is None:
+        f = fit_squircle(q[idx], views=None if vw is None else vw[idx], free=fr, config=cfg, init=init)
+        _record(cache, f.squircle, q[idx])
     f = Fit(f.squircle, f.rms, f.closed, idx, f.p95)
     if key is not None:
         cache[key] = f
@@ -852,7 +908,7 @@ def fit_cluster(points, *, views=None, free=None, config: PerceptionConfig | Non
     else:
         one = _fit_one(q, vw, free, cfg, init, cache, split)
         if one is not None:
-            return [one]
+            return _kept_records(cache, [one])
     depth = max(int(math.log2(max(max_pieces, 1))), 0)
     fr = None if free is None else _check(free, "free")
     parts = _runs(q, cfg, fr, depth)
@@ -868,16 +924,31 @@ def fit_cluster(points, *, views=None, free=None, config: PerceptionConfig | Non
                 fits.extend(_fit_piece(q, vw, fr, j, cfg, init, cache) for j in sub)
                 continue
         fits.append(f)
+    # pieces that kept the same previous estimate are one piece (its points together)
+    uniq: dict[int, Fit] = {}
+    for f in fits:
+        g = uniq.get(id(f.squircle))
+        uniq[id(f.squircle)] = f if g is None else Fit(g.squircle, g.rms, g.closed,
+                                                       np.concatenate((g.indices, f.indices)), g.p95)
+    fits = list(uniq.values())
     if len(fits) <= 1:
         if one is None:
             one = _fit_one(q, vw, free, cfg, init, cache, False)
-        return [one]
+        return _kept_records(cache, [one])
     if grow > 0:
         fits = _break_cycles(q, vw, free, fits, cfg, grow, init, cache)
     # keep only the pieces of this decomposition (bounded memory)
     keep = {_cell_key(q[f.indices], cfg) for f in fits}
-    for k in [k for k in cache if k != "one" and k not in keep]:
+    for k in [k for k in cache if k not in ("one", "err") and k not in keep]:
         del cache[k]
+    return _kept_records(cache, fits)
+
+
+def _kept_records(cache: dict, fits: list[Fit]) -> list[Fit]:
+    """Keep only the error records (:func:`_record`) of the estimates returned (bounded memory)."""
+    errs = cache.get("err")
+    if errs:
+        cache["err"] = {id(f.squircle): errs[id(f.squircle)] for f in fits if id(f.squircle) in errs}
     return fits
 
 
@@ -885,7 +956,11 @@ def _fit_one(q, vw, free, cfg: PerceptionConfig, init, cache: dict, split: bool)
     """The single-squircle fit of a whole cluster (warm-started only from a single previous
     estimate, not from a piece), recorded in ``cache["one"]``; returned when it explains the
     cluster (or ``split`` is False), else None."""
-    one = fit_squircle(q, views=vw, free=free, config=cfg, init=init if init and len(init) == 1 else None)
+    single = init if init and len(init) == 1 else None
+    one = _kept(single, q, vw, None if free is None else _check(free, "free"), cfg, cache.get("err"))
+    if one is None:
+        one = fit_squircle(q, views=vw, free=free, config=cfg, init=single)
+        _record(cache, one.squircle, q)
     cache["one"] = (len(q), one.rms, one)
     swallowed = 0
     if free is not None and len(free):

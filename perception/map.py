@@ -67,6 +67,7 @@ _REPAIR_STEPS = 16
 _GROW_STEP = 0.03
 _REFIT_EVERY = 5  # scans between non-urgent refits of one cluster
 _REFIT_LATEST = 20  # scans after which a pending (non-urgent) refit runs even on a quiet scan
+_MAX_BACKOFF = 2  # futile free-space refits double the wait, at most 2 ** _MAX_BACKOFF times
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -153,6 +154,21 @@ def _scale(sq: Squircle, d: float) -> Squircle:
     return Squircle(sq.center, sq.width + 2 * d, sq.height + 2 * d, sq.theta, sq.s)
 
 
+def _extend(sq: Squircle, p: np.ndarray, d: float) -> Squircle:
+    """``sq`` with its face towards ``p`` moved out by ``d`` (the opposite face stays): a
+    superset for ``d > 0``."""
+    c, s = math.cos(sq.theta), math.sin(sq.theta)
+    dx, dy = p[0] - sq.center[0], p[1] - sq.center[1]
+    u = (dx * c + dy * s, dy * c - dx * s)
+    h = (sq.width / 2, sq.height / 2)
+    k = 0 if abs(u[0]) / h[0] >= abs(u[1]) / h[1] else 1
+    sgn = 1.0 if u[k] >= 0 else -1.0
+    ax = (c, s) if k == 0 else (-s, c)
+    ctr = (sq.center[0] + ax[0] * sgn * d / 2, sq.center[1] + ax[1] * sgn * d / 2)
+    w, hh = (sq.width + d, sq.height) if k == 0 else (sq.width, sq.height + d)
+    return Squircle(ctr, w, hh, sq.theta, sq.s)
+
+
 @dataclass
 class _Cluster:
     single: bool = False  # decomposition disabled
@@ -160,6 +176,8 @@ class _Cluster:
     failed_at: int = 0  # cells when its last update had to be reverted (retry after growth)
     last_fit: int = -10**9  # scan count at its last refit
     pending: bool = False  # contradicted by data while not due: refit when due
+    by_points: bool = False  # the pending contradiction includes returns outside its estimates
+    futile: int = 0  # refits in a row that left free space deeper than free_tol inside (backoff)
     cache: dict = field(default_factory=dict)  # fit_cluster's memo of its pieces (refit cost)
 
 
@@ -431,6 +449,7 @@ class ObstacleMap:
                 self.stats["refit_grown"] += 1
             elif err > cfg.refit_tol:
                 self._clusters[lab].pending = True
+                self._clusters[lab].by_points = True
         self.stats["refit_new"] += len(touched["new"])
         self.stats["refit_merged"] += len(touched["merged"])
         if len(new_free) and self._est:
@@ -446,7 +465,10 @@ class ObstacleMap:
             busy = bool(refit)
             for lab, cl in self._clusters.items():
                 age = self.scans - cl.last_fit
-                if cl.pending and age >= _REFIT_EVERY and (busy or age >= _REFIT_LATEST):
+                # free space that the last refits could not clear (the same fit would come
+                # back) waits twice as long per futile refit, up to 4 times (returns do not)
+                wait = 1 if cl.by_points else 2 ** min(cl.futile, _MAX_BACKOFF)
+                if cl.pending and age >= _REFIT_EVERY * wait and (busy or age >= _REFIT_LATEST * wait):
                     refit.add(lab)
         proposed = dict(self._est)
         changed: set[int] = set()
@@ -664,10 +686,22 @@ class ObstacleMap:
         fits = fit_cluster(q, views=v, free=free, config=self.config, split=not cl.single, grow=1.05 * self.radius,
                            init=[proposed[i].squircle for i in old], cache=cl.cache)
         new_ids = []
-        for k, f in enumerate(fits):
+        # a piece that kept its previous estimate (the same squircle object) keeps its id;
+        # the others take the remaining ids in order, then new ones
+        kept = {id(proposed[i].squircle): i for i in old}
+        own, used = [], set()
+        for f in fits:
+            i = kept.get(id(f.squircle))
+            own.append(None if i in used else i)
+            used.add(i)
+        spare = [i for i in old if i not in own]
+        for f, i in zip(fits, own):
             sq = f.squircle
-            if k < len(old):
-                i = old[k]
+            if i is not None:
+                new_ids.append(i)
+                continue
+            if spare:
+                i = spare.pop(0)
                 if _same(proposed[i].squircle, sq):
                     new_ids.append(i)
                     continue
@@ -677,7 +711,7 @@ class ObstacleMap:
             proposed[i] = Estimate(i, sq, inflate(sq, self.radius), lab, f.rms, f.closed)
             changed.add(i)
             new_ids.append(i)
-        for i in old[len(fits):]:
+        for i in spare:
             proposed.pop(i, None)
             removed.add(i)
             changed.discard(i)
@@ -685,6 +719,11 @@ class ObstacleMap:
         cl.failed_at = 0
         cl.last_fit = self.scans
         cl.pending = False
+        cl.by_points = False
+        ids = [i for i in new_ids if i in proposed]
+        deep = bool(len(free) and ids) and any(
+            float(radial_error(proposed[i].squircle, free).min()) < -self.config.free_tol for i in ids)
+        cl.futile = cl.futile + 1 if deep else 0
         # regions: keep their discs (grown by the radius) free
         if self._trim_regions(new_ids, proposed, changed, removed):
             # decompose rather than uncover: returns a trim left outside the cluster's estimates
@@ -880,8 +919,16 @@ class ObstacleMap:
             if n >= 6:
                 return False
             i = min(ids, key=lambda k: proposed[k].squircle.area)
-            self._set(proposed, i, _scale(proposed[i].squircle, _GROW_STEP), changed)
-            notes.append(f"grew estimate {i} by {_GROW_STEP} m ({rule})")
+            others = [k for k in ids if k != i]
+            if others:
+                # a pair: only the face of the smaller estimate towards the other moves out (the
+                # rest of it stays where the data put it)
+                toward = np.asarray(proposed[others[0]].squircle.center, dtype=float)
+                self._set(proposed, i, _extend(proposed[i].squircle, toward, _GROW_STEP), changed)
+                notes.append(f"grew estimate {i} by {_GROW_STEP} m towards estimate {others[0]} ({rule})")
+            else:
+                self._set(proposed, i, _scale(proposed[i].squircle, _GROW_STEP), changed)
+                notes.append(f"grew estimate {i} by {_GROW_STEP} m ({rule})")
             return True
         if rule == "cycle" and len(ids) >= 2:
             labs = sorted({self._resolve(proposed[i].cluster) for i in ids} & set(self._clusters))
