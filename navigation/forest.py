@@ -426,71 +426,102 @@ def _sq_dists(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return dx * dx + dy * dy
 
 
-def _gap_bounds(P: np.ndarray) -> np.ndarray:
-    """Lower bounds ``(K, K)`` of the distances between the squircles of rows ``P (K, 7)``.
+def _corners(P: np.ndarray) -> np.ndarray:
+    """Corners ``(K, 4, 2)`` (counter-clockwise) of the bounding rectangles of rows ``P (K, 7)``."""
+    sx = np.array([1.0, -1.0, -1.0, 1.0])
+    sy = np.array([1.0, 1.0, -1.0, -1.0])
+    lx, ly = sx[None] * P[:, HW, None], sy[None] * P[:, HH, None]
+    return np.stack((P[:, CX, None] + P[:, COS, None] * lx - P[:, SIN, None] * ly,
+                     P[:, CY, None] + P[:, SIN, None] * lx + P[:, COS, None] * ly), axis=-1)
+
+
+def _gap_bound_rows(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """Lower bounds ``(E,)`` of the distances between the squircles of rows ``A[k]`` and ``B[k]``.
 
     A squircle lies inside its bounding rectangle and inside its bounding disc, so the exact
     distance between two rectangles (0 when a separating-axis test finds no separating axis
     among their four edge directions, otherwise the smallest corner-to-edge distance) and the
     gap between the discs both bound the squircles' distance from below; the larger is
     returned (the rectangle is tight for the near-rectangular squircles of walls, the disc for
-    round ones). Diagonal 0.
+    round ones).
     """
+    ca, cb = _corners(A), _corners(B)  # (E, 4, 2)
+    d = B[:, [CX, CY]] - A[:, [CX, CY]]
+    axes = (np.stack((A[:, COS], A[:, SIN]), 1), np.stack((-A[:, SIN], A[:, COS]), 1),
+            np.stack((B[:, COS], B[:, SIN]), 1), np.stack((-B[:, SIN], B[:, COS]), 1))
+    sep = np.zeros(len(A), bool)
+    for n in axes:  # separating-axis test: projections of both rectangles on n
+        ra = A[:, HW] * np.abs(n[:, 0] * A[:, COS] + n[:, 1] * A[:, SIN]) + \
+            A[:, HH] * np.abs(-n[:, 0] * A[:, SIN] + n[:, 1] * A[:, COS])
+        rb = B[:, HW] * np.abs(n[:, 0] * B[:, COS] + n[:, 1] * B[:, SIN]) + \
+            B[:, HH] * np.abs(-n[:, 0] * B[:, SIN] + n[:, 1] * B[:, COS])
+        sep |= np.abs((n * d).sum(-1)) > ra + rb
+
+    def corner_edge(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+        """Smallest distance from the corners of ``p`` to the edges of ``q`` (rows)."""
+        a = q[:, None, :, :]
+        e = np.roll(q, -1, axis=1)[:, None, :, :] - a  # (E, 1, 4 edges, 2)
+        v = p[:, :, None, :] - a  # (E, 4 corners, 4 edges, 2)
+        tt = np.clip((v * e).sum(-1) / (e * e).sum(-1), 0.0, 1.0)
+        return np.linalg.norm(v - tt[..., None] * e, axis=-1).min(axis=(1, 2))
+
+    rect = np.where(sep, np.minimum(corner_edge(ca, cb), corner_edge(cb, ca)), 0.0)
+    disc = np.hypot(d[:, 0], d[:, 1]) - np.hypot(A[:, HW], A[:, HH]) - np.hypot(B[:, HW], B[:, HH])
+    return np.maximum(np.maximum(rect, disc), 0.0)
+
+
+def _gap_bounds(P: np.ndarray, squircles: Sequence[Squircle] | None = None) -> np.ndarray:
+    """:func:`_gap_bound_rows` of every pair of rows ``P (K, 7)`` as a symmetric ``(K, K)``
+    matrix (diagonal 0); with ``squircles`` (the rows' squircles) memoised per pair."""
     K = len(P)
-    c = P[:, [CX, CY]]
-    ax = np.stack((P[:, COS], P[:, SIN]), axis=1)  # (K, 2) local x axis
-    ay = np.stack((-P[:, SIN], P[:, COS]), axis=1)
-    hw, hh = P[:, HW], P[:, HH]
-    sx = np.array([1.0, -1.0, -1.0, 1.0])
-    sy = np.array([1.0, 1.0, -1.0, -1.0])
-    corners = c[:, None] + (sx[None, :, None] * hw[:, None, None]) * ax[:, None] \
-        + (sy[None, :, None] * hh[:, None, None]) * ay[:, None]  # (K, 4, 2), counter-clockwise
-    # separating axes: the two axes of either rectangle
-    d = c[None, :] - c[:, None]  # (K, K, 2): c_j - c_i
-    sep = np.zeros((K, K), bool)
-    for axes in (ax, ay):
-        for n in (axes[:, None, :], axes[None, :, :]):  # axes of i, then of j
-            ri = hw[:, None] * np.abs((n * ax[:, None]).sum(-1)) + hh[:, None] * np.abs((n * ay[:, None]).sum(-1))
-            rj = hw[None, :] * np.abs((n * ax[None, :]).sum(-1)) + hh[None, :] * np.abs((n * ay[None, :]).sum(-1))
-            sep |= np.abs((n * d).sum(-1)) > ri + rj
-    # corners of i to edges of j
-    a = corners  # edge k of j: corners[j, k] -> corners[j, k+1]
-    b = np.roll(corners, -1, axis=1)
-    e = b - a  # (K, 4, 2)
-    p = corners[:, None, :, None, :]  # (K_i, 1, 4 corners, 1, 2)
-    a_, e_ = a[None, :, None, :, :], e[None, :, None, :, :]  # (1, K_j, 1, 4 edges, 2)
-    tt = np.clip(((p - a_) * e_).sum(-1) / (e_ * e_).sum(-1), 0.0, 1.0)
-    dist = np.linalg.norm(p - a_ - tt[..., None] * e_, axis=-1).min(axis=(2, 3))  # (K_i, K_j)
-    rect = np.where(sep, np.minimum(dist, dist.T), 0.0)
-    R = np.hypot(hw, hh)
-    disc = np.linalg.norm(d, axis=-1) - R[:, None] - R[None, :]
-    out = np.maximum(rect, disc)
-    np.fill_diagonal(out, 0.0)
-    return np.maximum(out, 0.0)
+    out = np.zeros((K, K))
+    I, J = np.triu_indices(K, 1)
+    if I.size == 0:
+        return out
+    if squircles is None:
+        v = _gap_bound_rows(P[I], P[J])
+    else:
+        keys = [("gb", squircles[i], squircles[j]) for i, j in zip(I, J)]
+        v = np.array([_PAIRS.get(k) for k in keys], dtype=float)  # None -> nan
+        todo = np.nonzero(np.isnan(v))[0]
+        if todo.size:
+            v[todo] = _gap_bound_rows(P[I[todo]], P[J[todo]])
+            for t in todo:
+                _PAIRS.put(keys[t], float(v[t]))
+    out[I, J] = out[J, I] = v
+    return out
 
 
-def _wall_bounds(P: np.ndarray, ws: _Body) -> np.ndarray:
+def _wall_bounds(P: np.ndarray, ws: _Body, squircles: Sequence[Squircle] | None = None) -> np.ndarray:
     """Lower bounds ``(K,)`` of the distances from squircles ``P (K, 7)`` inside the workspace
-    to its boundary.
+    to its boundary (memoised per squircle when ``squircles`` are given).
 
-    The polygon through the workspace's boundary samples lies inside it, so the distance from
-    a point to the polygon's boundary bounds its distance to the workspace boundary from below;
-    a squircle lies inside its bounding rectangle, whose distance to the boundary of a convex
-    polygon containing it is the smallest slack of its corners over the polygon's edges. 0
-    where a corner is not inside the polygon.
+    The polygon through every 4th boundary sample of the workspace lies inside it, so the
+    distance from a point to the polygon's boundary bounds its distance to the workspace
+    boundary from below; a squircle lies inside its bounding rectangle, whose distance to the
+    boundary of a convex polygon containing it is the smallest slack of its corners over the
+    polygon's edges. 0 where a corner is not inside the polygon.
     """
-    v = ws.pts  # counter-clockwise boundary samples
-    e = np.roll(v, -1, axis=0) - v
-    a = np.stack((e[:, 1], -e[:, 0]), axis=1)
-    a /= np.linalg.norm(a, axis=1, keepdims=True)
-    b = (a * v).sum(-1)
-    sx = np.array([1.0, -1.0, -1.0, 1.0])
-    sy = np.array([1.0, 1.0, -1.0, -1.0])
-    lx, ly = sx[None] * P[:, HW, None], sy[None] * P[:, HH, None]
-    cx = P[:, CX, None] + P[:, COS, None] * lx - P[:, SIN, None] * ly  # (K, 4)
-    cy = P[:, CY, None] + P[:, SIN, None] * lx + P[:, COS, None] * ly
-    slack = b[None, None, :] - cx[..., None] * a[:, 0] - cy[..., None] * a[:, 1]  # (K, 4, n)
-    return np.maximum(slack.min(axis=(1, 2)), 0.0)
+    keys = [("wb", sq, ws.sq) for sq in squircles] if squircles is not None else None
+    v = np.array([_PAIRS.get(k) for k in keys], dtype=float) if keys else np.full(len(P), np.nan)
+    todo = np.nonzero(np.isnan(v))[0]
+    if todo.size:
+        poly = _PAIRS.get(("wspoly", ws.sq))
+        if poly is None:
+            pts = ws.pts[::4]  # counter-clockwise
+            e = np.roll(pts, -1, axis=0) - pts
+            a = np.stack((e[:, 1], -e[:, 0]), axis=1)
+            a /= np.linalg.norm(a, axis=1, keepdims=True)
+            poly = (a, (a * pts).sum(-1))
+            _PAIRS.put(("wspoly", ws.sq), poly)
+        a, b = poly
+        c = _corners(P[todo])  # (k, 4, 2)
+        slack = b[None, None, :] - c[..., 0, None] * a[:, 0] - c[..., 1, None] * a[:, 1]  # (k, 4, n)
+        v[todo] = np.maximum(slack.min(axis=(1, 2)), 0.0)
+        if keys:
+            for t in todo:
+                _PAIRS.put(keys[t], float(v[t]))
+    return v
 
 
 def _pair_distance(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, tol: float = 1e-12):
@@ -1277,7 +1308,7 @@ def build_forest(workspace: Squircle, obstacles: Sequence[Squircle], *, min_gap:
 
     # --- distances: lower bounds for every pair, exact where a rule needs them
     rows = np.stack([bodies[k].row for k in keep]) if m else np.zeros((0, 7))
-    bound = _gap_bounds(rows)
+    bound = _gap_bounds(rows, [obstacles[k] for k in keep])
     exact = np.zeros((m, m), bool)
     edge_set = set(edges)
     for a, b in edges:
@@ -1300,7 +1331,7 @@ def build_forest(workspace: Squircle, obstacles: Sequence[Squircle], *, min_gap:
     wall_exact = np.ones(m, bool)
     inner = [a for a in range(m) if a not in set(ws_children)]
     if inner:
-        wall[inner] = _wall_bounds(rows[inner], bodies[W])
+        wall[inner] = _wall_bounds(rows[inner], bodies[W], [obstacles[keep[a]] for a in inner])
         wall_exact[inner] = False
 
     def settle_walls(idx) -> None:
