@@ -8,7 +8,8 @@ unguarded ``rr.log`` of 1000 points costs ~0.1 ms even with Rerun off).
 Entity paths (2-D world frame, metres)::
 
     world/workspace            LineStrips2D   workspace boundary               (static)
-    world/regions              Points2D       region discs with their names    (static)
+    world/regions              Points2D       region discs with their names    (on change; the
+                                              initial set at tick 0, so the history is kept)
     world/obstacles/true       LineStrips2D   ground truth (simulation only)   (static)
     world/obstacles/estimated  LineStrips2D   the service's obstacle estimate  (on change)
     world/lidar                Points2D       lidar returns, world frame       (per scan)
@@ -192,7 +193,8 @@ class Telemetry:
 
     # ------------------------------------------------------------------ static scene
     def log_world(self, world, *, true_obstacles: bool = False) -> None:
-        """Workspace and regions (and, in simulation, the ground-truth obstacles) as static data."""
+        """Workspace (and, in simulation, the ground-truth obstacles) as static data; the regions
+        at tick 0."""
         if self._rec is None:
             return
         import rerun as rr
@@ -200,13 +202,17 @@ class Telemetry:
         rec = self._rec
         rec.log("world/workspace", rr.LineStrips2D(_outlines([world.workspace]), colors=[[200, 200, 200]]),
                 static=True)
+        # the regions are temporal (they can change at run time): the initial set from the start
+        rec.set_time("tick", sequence=0)
+        rec.set_time("sim_time", duration=0.0)
         self._log_regions(world.regions)
         if true_obstacles and world.obstacles:
             rec.log("world/obstacles/true", rr.LineStrips2D(_outlines(world.obstacles), colors=[[120, 120, 120]]),
                     static=True)
 
     def _log_regions(self, regions) -> None:
-        """Region discs (static: the latest set replaces the previous one)."""
+        """Region discs at the current time, when the set changed (the viewer shows the set in
+        force at the selected time)."""
         import rerun as rr
 
         key = tuple((n, tuple(r.center), r.radius) for n, r in regions.items())
@@ -217,9 +223,9 @@ class Telemetry:
         if names:
             self._rec.log("world/regions", rr.Points2D([regions[n].center for n in names],
                                                         radii=[regions[n].radius for n in names],
-                                                        labels=names, colors=[[80, 160, 255, 90]]), static=True)
+                                                        labels=names, colors=[[80, 160, 255, 90]]))
         else:
-            self._rec.log("world/regions", rr.Clear(recursive=False), static=True)
+            self._rec.log("world/regions", rr.Clear(recursive=False))
 
     # ------------------------------------------------------------------ per tick
     def log_tick(self, node, *, scan=None, points=None, out=None, status=None, compute: float = 0.0) -> None:

@@ -91,6 +91,7 @@ def test_heat_map_and_arrows_are_recorded_at_a_low_rate_on_free_points(simple_br
 
 
 def test_regions_added_at_run_time_are_logged_again(simple_brain, tmp_path):
+    """The initial regions are at tick 0 and the changed set at a later tick (history kept)."""
     from rerun.chunk import RrdReader
 
     world, brain = simple_brain
@@ -101,11 +102,16 @@ def test_regions_added_at_run_time_are_logged_again(simple_brain, tmp_path):
     brain.executive.set_regions({"d": {"center": [2.0, 0.4], "radius": 0.15}})
     _drive(brain, tel, world, 0.3)
     tel.close()
-    labels = []
+    logged = []  # (tick, sorted labels): the regions are temporal, so both sets are kept
     for chunk in RrdReader(str(rrd)).stream().collect().stream():
         if str(chunk.entity_path) == "/world/regions":
             batch = chunk.to_record_batch()
+            assert "tick" in batch.schema.names, batch.schema.names  # not static
+            ticks = batch.column("tick").to_pylist()
             for name in batch.schema.names:
                 if name.endswith("labels"):
-                    labels += [sorted(cell) for cell in batch.column(name).to_pylist() if cell]
-    assert ["a", "b", "c", "d"] in labels, labels
+                    logged += [(tk, sorted(cell)) for tk, cell in zip(ticks, batch.column(name).to_pylist()) if cell]
+    first = [tk for tk, lab in logged if lab == ["a", "b", "c"]]
+    later = [tk for tk, lab in logged if lab == ["a", "b", "c", "d"]]
+    assert first and later, logged
+    assert min(first) == 0 and min(later) > max(first), logged
