@@ -211,13 +211,11 @@ def _blend(q: np.ndarray, current: OrientedField, following: OrientedField, cfg:
     t0, g0, s0 = _direction(q, current, cfg)
     diff = q - current.goal
     gamma = float(np.linalg.norm(diff))
-    eta = switch_weight(gamma, cfg)
+    eta, deta = _switch(gamma, cfg)
     if eta <= 0.0:
         return t0, g0, s0
     t1, g1, s1 = _direction(q, following, cfg)
-    eps = cfg.switch_margin
-    th = math.tanh(cfg.k_switch * (eps - gamma) / eps)
-    grad_eta = (-0.5 * cfg.k_switch / eps * (1.0 - th * th)) * diff / gamma if gamma > 0 else np.zeros(2)
+    grad_eta = deta * diff / gamma if gamma > 0 else np.zeros(2)
     speed = (1.0 - eta) * s0 + eta * s1
     out = _unit_blend(t0, g0, t1, g1, eta, grad_eta)
     if out is None:  # opposite directions at eta = 1/2 (measure zero): the dominant waypoint's
@@ -265,8 +263,14 @@ def track(pose, field: OrientedField, config: ControllerConfig = ControllerConfi
 
 def switch_weight(distance: float, config: ControllerConfig = ControllerConfig()) -> float:
     """``eta(gamma_n)`` of eq. 25 (normalised form, see the module doc)."""
-    eps = config.switch_margin
-    return 0.5 * (1.0 + math.tanh(config.k_switch * (eps - float(distance)) / eps))
+    return _switch(float(distance), config)[0]
+
+
+def _switch(gamma: float, cfg: ControllerConfig) -> tuple[float, float]:
+    """``eta(gamma)`` of eq. 25 and its derivative ``d eta / d gamma`` (one tanh)."""
+    eps = cfg.switch_margin
+    th = math.tanh(cfg.k_switch * (eps - gamma) / eps)
+    return 0.5 * (1.0 + th), -0.5 * cfg.k_switch / eps * (1.0 - th * th)
 
 
 def track_waypoints(pose, current: OrientedField, following: OrientedField | None = None,
