@@ -77,6 +77,8 @@ def run_mission(world, task: str | None = None, known: bool = False, seed: int =
         ``visited`` (regions entered, in order), ``oscillation`` (sign changes of omega per
         metre); and ``world``, ``state``, ``message``, ``initial_planning_time``,
         ``replan_p95``, ``tick_median``, ``tick_p95``, ``tick_max`` (wall s per tick),
+        ``tick_cpu_median``, ``tick_cpu_p95``, ``replan_cpu_p95``, ``max_replan_cpu`` (process CPU
+        s: the same figures without the time other processes take on a loaded machine),
         ``bad_commands`` (non-finite or out-of-limit commands: must be 0), ``min_clearance``,
         ``map_changes``, ``trees_planned``, ``obstacles`` (estimates at the end), ``messages``.
 
@@ -97,7 +99,7 @@ def run_mission(world, task: str | None = None, known: bool = False, seed: int =
     sim = Simulator(world, seed=seed)
     period = 1.0 / world.lidar.rate_hz
     next_scan = 0.0
-    ticks, omegas, poses = [], [], []
+    ticks, cpu, omegas, poses = [], [], [], []
     bad = 0
     last = None
     blocked_since = None
@@ -109,7 +111,9 @@ def run_mission(world, task: str | None = None, known: bool = False, seed: int =
         if sim.time >= next_scan - 1e-9:
             scan = sim.scan_message()
             next_scan += period
+        c0 = time.process_time()
         res = ex.tick(pose, scan=scan, now=sim.time)
+        cpu.append(time.process_time() - c0)
         ticks.append(res.compute)
         v, w = res.v, res.omega
         if not (math.isfinite(v) and math.isfinite(w) and abs(v) <= vmax + 1e-12 and abs(w) <= wmax + 1e-12):
@@ -139,6 +143,8 @@ def run_mission(world, task: str | None = None, known: bool = False, seed: int =
     m = sim.metrics
     rt = ex.replan_times
     t = np.asarray(ticks) if ticks else np.zeros(1)
+    c = np.asarray(cpu) if cpu else np.zeros(1)
+    rc = ex.replan_cpu_times
     out = {
         "world": world.name,
         "completed": bool(completed),
@@ -157,6 +163,10 @@ def run_mission(world, task: str | None = None, known: bool = False, seed: int =
         "tick_median": float(np.median(t)),
         "tick_p95": float(np.percentile(t, 95)),
         "tick_max": float(t.max()),
+        "tick_cpu_median": float(np.median(c)),
+        "tick_cpu_p95": float(np.percentile(c, 95)),
+        "replan_cpu_p95": float(np.percentile(rc, 95)) if rc else 0.0,
+        "max_replan_cpu": float(max(rc)) if rc else 0.0,
         "bad_commands": bad,
         "min_clearance": float(m.min_clearance),
         "map_changes": ex.map_changes,
