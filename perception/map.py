@@ -154,6 +154,16 @@ def _scale(sq: Squircle, d: float) -> Squircle:
     return Squircle(sq.center, sq.width + 2 * d, sq.height + 2 * d, sq.theta, sq.s)
 
 
+def _rect_gap(sq: Squircle, p) -> float:
+    """Distance from ``p`` to the rectangle ``width x height`` of ``sq`` (0 inside): a lower
+    bound of the distance to ``sq``, which lies inside it (``g >= max(|x|, |y|)``)."""
+    c, s = math.cos(sq.theta), math.sin(sq.theta)
+    dx, dy = p[0] - sq.center[0], p[1] - sq.center[1]
+    u = abs(dx * c + dy * s) - sq.width / 2
+    v = abs(dy * c - dx * s) - sq.height / 2
+    return math.hypot(max(u, 0.0), max(v, 0.0))
+
+
 def _extend(sq: Squircle, p: np.ndarray, d: float) -> Squircle:
     """``sq`` with its face towards ``p`` moved out by ``d`` (the opposite face stays): a
     superset for ``d > 0``."""
@@ -501,16 +511,17 @@ class ObstacleMap:
         if not len(t) or not len(L):
             return np.zeros((0, 2))
         m = t[None, :] < L[:, None]
-        tt = np.broadcast_to(t, m.shape)[m]
-        aa = np.broadcast_to(ang[:, None], m.shape)[m]
-        q = np.stack((scan.pose[0] + tt * np.cos(aa), scan.pose[1] + tt * np.sin(aa)), axis=1)
-        ij, ok = self._cells(q, cfg.free_cell, self._fshape)
-        ij = ij[ok]
-        lin = np.unique(ij[:, 0] * self._fshape[1] + ij[:, 1])
+        # cell indices of the samples (cos and sin once per beam, not per sample)
+        fx = ((scan.pose[0] - self._lo[0]) + t[None, :] * np.cos(ang)[:, None])[m] / cfg.free_cell
+        fy = ((scan.pose[1] - self._lo[1]) + t[None, :] * np.sin(ang)[:, None])[m] / cfg.free_cell
+        i, j = np.floor(fx).astype(np.int64), np.floor(fy).astype(np.int64)
+        ok = (i >= 0) & (j >= 0) & (i < self._fshape[0]) & (j < self._fshape[1])
+        lin = i[ok] * self._fshape[1] + j[ok]
+        flat = self._free.reshape(-1)  # a view (C-contiguous)
+        # only the samples in cells not yet free need sorting (few once the area is explored)
+        lin = np.unique(lin[~flat[lin]])
+        flat[lin] = True
         fi, fj = lin // self._fshape[1], lin % self._fshape[1]
-        fresh = ~self._free[fi, fj]
-        self._free[fi, fj] = True
-        fi, fj = fi[fresh], fj[fresh]
         return self._lo + (np.stack((fi, fj), axis=1) + 0.5) * cfg.free_cell
 
     def _cluster_new(self, new_cells: np.ndarray, scan_cell, beam_of, scan) -> dict:
@@ -763,6 +774,8 @@ class ObstacleMap:
             e = proposed[i]
             if math.dist(e.inflated.center, p) > e.inflated.bounding_radius + self.radius:
                 continue
+            if _rect_gap(e.inflated, p) > 0 and _rect_gap(e.squircle, p) >= self.radius + self.config.clearance_margin:
+                continue  # (a squircle lies inside its rectangle: the exact distance is larger)
             if e.inflated.beta(p) <= 0 or e.squircle.distance(p) < self.radius + self.config.clearance_margin:
                 msg = self._trim(i, p, self.radius, proposed, changed, removed, "robot disc")
                 if msg:
