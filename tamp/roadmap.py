@@ -459,6 +459,79 @@ class Roadmap:
                           self.free_workspace, P, pts, owner, all_pairs)
 
 
+    def without_obstacles(self, indices) -> "Roadmap":
+        """The roadmap with the obstacles ``self.obstacles[k]``, ``k`` in ``indices``, removed (an
+        estimate that perception replaced or dropped).
+
+        Every vertex and edge of ``self`` that does not belong to a removed obstacle stays valid
+        (it was safe against a superset). What the removed obstacles hid is added back: the
+        boundary vertices of the remaining obstacles that lay inside a removed ``G_j``, their
+        visible pairs, and the pairs between remaining vertices whose segment comes near a
+        removed ``G_j`` (within its bounding circle) and is safe now. Without extra candidates
+        the result has the vertices and edges of ``Roadmap.build`` on the remaining obstacles
+        (in another vertex order); extra candidates a removed obstacle had rejected are not
+        recovered.
+        """
+        gone = np.zeros(len(self.obstacles), dtype=bool)
+        gone[np.asarray(list(indices), dtype=np.intp)] = True
+        if not gone.any():
+            return self
+        kept = np.nonzero(~gone)[0]
+        remap = np.full(len(self.obstacles), -1, dtype=np.intp)
+        remap[kept] = np.arange(len(kept))
+        G = tuple(self.buffered[k] for k in kept)
+        P = self.P[kept]
+        P_gone = self.P[gone]
+        # vertices: drop the removed obstacles' own, keep the others (owners renumbered)
+        keep = (self.owner < 0) | ~gone[np.maximum(self.owner, 0)]
+        old_index = np.full(len(self.points), -1, dtype=np.intp)
+        old_index[keep] = np.arange(int(keep.sum()))
+        pts_old = self.points[keep]
+        owner_old = np.where(self.owner[keep] >= 0, remap[np.maximum(self.owner[keep], 0)], -1)
+        pairs = self.pairs[keep[self.pairs[:, 0]] & keep[self.pairs[:, 1]]] if len(self.pairs) else self.pairs
+        pairs = old_index[pairs].reshape(-1, 2)
+        # vertices the removed obstacles hid: candidates of the remaining obstacles that are safe
+        # now and lie inside a removed G_j (the others were kept before or are still unsafe)
+        # (only obstacles whose buffered bounding circle meets a removed one's can have such)
+        rk = np.hypot(P[:, 4], P[:, 5]) + self.config.offset
+        rg = np.hypot(P_gone[:, 4], P_gone[:, 5])
+        gap = np.linalg.norm(P[:, None, :2] - P_gone[None, :, :2], axis=2)
+        near_gone = np.nonzero(np.any(gap <= rk[:, None] + rg[None, :], axis=1))[0]
+        cand, cowner = self._candidates(G, near_gone, self.config)
+        hidden = np.zeros(len(cand), dtype=bool)
+        if len(cand):
+            hidden = np.any(beta_rows(P_gone[None, :, :], cand[:, None, 0], cand[:, None, 1]) <= 0, axis=1)
+        ok = hidden & _outside_all(P, self.free_workspace, cand)
+        cand, cowner = cand[ok], cowner[ok]
+        n_old, n_new = len(pts_old), len(cand)
+        pts = np.concatenate([pts_old, cand])
+        owner = np.concatenate([owner_old, cowner])
+        # old-old pairs that were not visible and pass near a removed obstacle: test again
+        i, j = np.triu_indices(n_old, 1)
+        if len(pairs):
+            is_pair = np.zeros((n_old, n_old), dtype=bool)
+            is_pair[pairs[:, 0], pairs[:, 1]] = True
+            sel = ~is_pair[i, j]
+            i, j = i[sel], j[sel]
+        if len(i):
+            radius = np.hypot(P_gone[:, 4], P_gone[:, 5])
+            near = np.zeros(len(i), dtype=bool)
+            step = max(1, _CHUNK // len(P_gone))
+            for lo in range(0, len(i), step):
+                hi = min(len(i), lo + step)
+                d = _point_segment_distance(P_gone[:, :2], pts_old[i[lo:hi]], pts_old[j[lo:hi]])
+                near[lo:hi] = np.any(d <= radius[None, :] * (1.0 + 1e-9), axis=1)
+            i, j = i[near], j[near]
+        reopened = self._visible(P, pts, i, j, self.config.vicinity)
+        # pairs of the hidden vertices with every vertex
+        ii, jj = np.meshgrid(np.arange(n_old + n_new), np.arange(n_old, n_old + n_new), indexing="ij")
+        sel = ii < jj
+        new_pairs = self._visible(P, pts, ii[sel], jj[sel], self.config.vicinity)
+        all_pairs = np.concatenate([pairs, reopened, new_pairs])
+        return self._make(self.workspace, tuple(self.obstacles[k] for k in kept), self.radius, self.config, G,
+                          self.free_workspace, P, pts, owner, all_pairs)
+
+
 def descent_candidates(nf, start, spacing: float = 0.5, **descend_options) -> np.ndarray:
     """Potential-biased regeneration candidates (paper 001 section 4.2.3 II): points every
     ``spacing`` metres (of arc length) along the gradient descent of the navigation function

@@ -205,6 +205,31 @@ def test_revision_equals_rebuild(seed):
         rm, trees = rev.roadmap, {**rev.trees}
 
 
+def _vertex_edge_sets(rm):
+    """Vertices and undirected edges as sets of coordinates (independent of vertex order)."""
+    V = {tuple(np.round(p, 9)) for p in rm.points}
+    E = {frozenset((tuple(np.round(rm.points[a], 9)), tuple(np.round(rm.points[b], 9)))) for a, b in rm.pairs}
+    return V, E
+
+
+@pytest.mark.parametrize("name", ["office", "cluttered20", "random0", "random3"])
+def test_removal_equals_rebuild(name):
+    world = random_world(int(name[6:])) if name.startswith("random") else shared_world(name)
+    obstacles = list(world.obstacles)
+    full = Roadmap.build(world.workspace, obstacles, world.robot.radius)
+    rng = np.random.default_rng(len(obstacles))
+    for size in (1, 3):
+        gone = sorted(rng.choice(len(obstacles), size=size, replace=False).tolist())
+        removed = full.without_obstacles(gone)
+        rest = [o for k, o in enumerate(obstacles) if k not in gone]
+        scratch = Roadmap.build(world.workspace, rest, world.robot.radius)
+        assert removed.obstacles == tuple(rest)
+        assert _vertex_edge_sets(removed) == _vertex_edge_sets(scratch)
+        # and back: adding them again gives the full roadmap's vertices and edges
+        again = removed.with_obstacles([obstacles[k] for k in gone])
+        assert _vertex_edge_sets(again) == _vertex_edge_sets(full)
+
+
 def test_biased_regeneration_is_safe_and_no_worse():
     """Extra candidates along the potential's descent only add vertices: never a dearer path."""
     import navigation
