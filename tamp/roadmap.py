@@ -170,7 +170,7 @@ def _misses(P: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         # fhi + ghi (t - hi) (rising), cross at t* in [lo, hi]; the convex beta lies above both,
         # so their value there is a lower bound of beta on the bracket
         denom = ghi - glo
-        tstar = np.clip((flo - fhi + ghi * hi - glo * lo) / denom, lo, hi)
+        tstar = np.minimum(np.maximum((flo - fhi + ghi * hi - glo * lo) / denom, lo), hi)  # np.clip is slower
         bound = np.maximum(flo + glo * (tstar - lo), fhi + ghi * (tstar - hi))
         ok = bound > 0
         out[act[ok]] = True
@@ -178,7 +178,7 @@ def _misses(P: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         # ellipse is one), kept a quarter of the width from either end so that the bracket
         # shrinks by at least a quarter per step
         width = hi - lo
-        mid = np.clip(lo - glo * width / denom, lo + 0.25 * width, hi - 0.25 * width)
+        mid = np.minimum(np.maximum(lo - glo * width / denom, lo + 0.25 * width), hi - 0.25 * width)
         fm, gm = _line_beta(P[act], a[act], d[act], mid)
         keep = ~ok & (fm > 0)
         left = gm < 0  # minimum right of mid
