@@ -80,6 +80,7 @@ class DriveResult:
     """What :func:`drive` recorded."""
 
     times: list = field(default_factory=list)  # wall seconds per update
+    cpu_times: list = field(default_factory=list)  # process CPU seconds per update (less load-sensitive)
     updates: list = field(default_factory=list)  # MapUpdate per scan
     hits: list = field(default_factory=list)  # noise-free obstacle hit points per scan
     robot_covered: int = 0  # scans after which an inflated estimate contained the robot
@@ -111,9 +112,11 @@ def drive(sim, omap: ObstacleMap, poses: np.ndarray, *, dt: float = 0.1, check=N
                "range_min": lid.range_min, "range_max": rmax,
                "ranges": np.where(np.isfinite(noisy) & (noisy < rmax), noisy, rmax).tolist()}
         pmsg = {"stamp": stamp, "x": float(pose[0]), "y": float(pose[1]), "theta": float(pose[2])}
+        c0 = time.process_time()
         t0 = time.perf_counter()
         upd = omap.update_scan(msg, pmsg)
         res.times.append(time.perf_counter() - t0)
+        res.cpu_times.append(time.process_time() - c0)
         res.updates.append(upd)
         h = np.isfinite(true)
         a = pose[2] + beams[h]

@@ -15,13 +15,16 @@ error* is
 :func:`fit_squircle` minimises ``sum e(q_i)^2`` over the cluster's points plus a penalty for
 free-space evidence inside the estimate and a penalty ``0.1 sqrt(N) max(a - a0, 0)`` (and for
 ``b``) on extents beyond the starting rectangle's (the unseen side of a partial view is not
-constrained by data), by ``scipy.optimize.least_squares`` over ``(c, log a, log b, theta, s)``,
-started from OpenCV's ``minAreaRect`` (``s = 0.9``) and
+constrained by data), each radial error weighted by ``g / (|q - c| |grad g|)`` (so that it is
+the distance to the boundary to first order, :func:`_distance_weights`), by Levenberg-Marquardt
+(:func:`_lm`) over ``(c, log a, log b, theta, s)``, started from OpenCV's ``minAreaRect``
+(``s = 0.9``) and
 ``fitEllipse`` (``s = 0.1``) of the points; of the two results the one with the smaller total
 cost is kept, the free-space penalty deciding between fits of comparable point error. A refit
 is warm (``init``, the previous estimates): the nearest previous estimate is solved first and
 kept when it still explains the points and the free space, else the rectangle seed is the
-alternative (:func:`fit_squircle`). Then the *conservative completion*:
+alternative (:func:`fit_squircle`); in :func:`fit_cluster` a previous estimate the data does not
+contradict is kept without a fit (:func:`_kept`). Then the *conservative completion*:
 
 1. a face of the estimate counts as seen when at least two points lie on it and were seen
    from outside it (the beam direction points into the face); along an axis whose two faces

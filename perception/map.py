@@ -17,7 +17,8 @@ The map starts knowing only the workspace and grows from scans:
    same scan processed twice changes nothing). A return more than ``0.75 radius`` outside (it
    would soon leave the inflated estimate) refits at once; other contradictions make the
    cluster pending: refitted at most once every 5 scans, together with a scan that refits
-   anyway (one forest check), or alone after 20 scans. The cluster is fitted by
+   anyway (one forest check), or alone after 20 scans (up to 4 times longer for free space
+   that the last refits could not clear). The cluster is fitted by
    :func:`perception.fit.fit_cluster` (one squircle or a decomposition), extended through the
    workspace boundary when it touches it (walls on the boundary).
 5. **Clearances**: an estimate is trimmed (the face towards the disc moved back, the far side
@@ -28,7 +29,8 @@ The map starts knowing only the workspace and grows from scans:
    :func:`navigation.build_forest`. The check runs on the changed estimates and everything
    near them (bounding circles within ``min_gap``), which is equivalent to checking the whole
    map because the untouched part was accepted before. A :class:`~navigation.ForestError` is
-   repaired conservatively: a too-close or shallow pair is grown by 3 cm per try, a cycle is
+   repaired conservatively: a too-close or shallow pair is grown by 3 cm per try (the smaller
+   estimate's face towards the other), a cycle is
    broken by merging the two closest members into one squircle covering both, after three
    tries a pair is merged; a cycle through estimates of different clusters merges the clusters
    and re-decomposes them together; if repairs fail the update of those estimates is reverted (logged).
@@ -790,7 +792,9 @@ class ObstacleMap:
             return ""
         sq = e.squircle
         need = clearance + cfg.clearance_margin
-        if math.dist(sq.center, p) > sq.bounding_radius + need:
+        # (the inflated estimate reaches beyond ``bounding_radius + radius`` at its corners:
+        # inflate grows the extents by 2 k r, k >= 1; cluttered20 noisy covered the robot)
+        if math.dist(sq.center, p) > max(sq.bounding_radius + need, e.inflated.bounding_radius):
             return ""
         d0 = float(sq.distance(p))
         if d0 >= need and e.inflated.beta(p) > 0:

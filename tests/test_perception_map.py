@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import math
 
 import numpy as np
 import pytest
@@ -150,3 +151,24 @@ def test_boundary_returns_are_dropped_by_distance():
     inner = b - 0.3 * n  # 30 cm inside: an obstacle
     upd = omap.update_points({"stamp": 0.1, "points": inner.tolist()}, (5.5, 3.0, 0.0))
     assert upd.points == len(inner) and len(omap) >= 1
+
+
+def test_robot_near_an_inflated_corner_is_cleared():
+    """The inflated estimate reaches beyond ``bounding_radius + radius`` at its corners
+    (``inflate`` grows the extents by ``2 k r``, ``k >= 1``): a robot there is still cleared
+    (cluttered20 noisy, 16 legs: an estimate covered the robot after one scan)."""
+    from navigation.geometry import Squircle
+
+    from perception.fit import inflate
+    from perception.map import Estimate
+
+    world = shared_world("cluttered20")
+    omap = ObstacleMap.from_world(world, noise_std=0.01)
+    sq = Squircle((1.0484156166486556, 3.4822494947789844), 0.5383364334761227, 0.6787285838710547,
+                  -0.800624011049002, 0.99)
+    e = Estimate(0, sq, inflate(sq, omap.radius), 0)
+    p = np.array([0.98398042, 2.94693015])
+    assert e.inflated.beta(p) <= 0 and math.dist(sq.center, p) > sq.bounding_radius + omap.radius
+    proposed, changed, removed, notes = {0: e}, set(), set(), []
+    omap._clear_robot((p[0], p[1], 0.0), proposed, changed, removed, notes)
+    assert 0 in changed and proposed[0].inflated.beta(p) > 0, notes
