@@ -143,24 +143,30 @@ def _line_beta(P: np.ndarray, a: np.ndarray, d: np.ndarray, t: np.ndarray):
     return beta, dbeta
 
 
-def _misses(P: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """True where the closed segment ``[a_k, b_k]`` misses the squircle ``P_k`` (row-wise).
+def _blocked(P: np.ndarray, a: np.ndarray, b: np.ndarray, seg: np.ndarray, n: int) -> np.ndarray:
+    """Which of ``n`` segments are blocked, from the (segment, squircle) pairs ``seg[k]``,
+    ``P[k]`` with ends ``a[k]``, ``b[k]``: ``(n,)`` bool, True where some pair is not certified
+    to miss.
 
-    Exact up to rounding: ``beta`` is convex along the segment; its minimum is bracketed by
-    bisection and certified positive by tangent lines (see the module docstring). Pairs still
-    undecided after the bisection count as blocked.
+    Exact up to rounding: ``beta`` is convex along the segment; its minimum is bracketed on the
+    sign of its exact derivative and certified positive by tangent lines (see the module
+    docstring). Pairs still undecided after the bracketing count as blocked. A pair whose
+    segment is already blocked by another pair is dropped (its verdict cannot change the
+    segment's).
     """
+    blocked = np.zeros(n, dtype=bool)
     K = len(P)
-    out = np.zeros(K, dtype=bool)
     if K == 0:
-        return out
+        return blocked
     d = b - a
     zero, one = np.zeros(K), np.ones(K)
     f0, g0 = _line_beta(P, a, d, zero)
     f1, g1 = _line_beta(P, a, d, one)
     ends_out = (f0 > 0) & (f1 > 0)
-    out[ends_out & ((g0 >= 0) | (g1 <= 0))] = True  # minimum at an end, which is outside
+    blocked[seg[~ends_out]] = True  # an end inside the squircle
+    # otherwise the minimum is at an end (outside) unless g0 < 0 < g1
     act = np.nonzero(ends_out & (g0 < 0) & (g1 > 0))[0]
+    act = act[~blocked[seg[act]]]
     lo, hi = zero[act], one[act]
     flo, glo, fhi, ghi = f0[act], g0[act], f1[act], g1[act]
     for _ in range(_BISECTION_STEPS):
@@ -171,16 +177,17 @@ def _misses(P: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         # so their value there is a lower bound of beta on the bracket
         denom = ghi - glo
         tstar = np.minimum(np.maximum((flo - fhi + ghi * hi - glo * lo) / denom, lo), hi)  # np.clip is slower
-        bound = np.maximum(flo + glo * (tstar - lo), fhi + ghi * (tstar - hi))
-        ok = bound > 0
-        out[act[ok]] = True
+        ok = np.maximum(flo + glo * (tstar - lo), fhi + ghi * (tstar - hi)) > 0
         # split where the derivative's chord vanishes (the minimiser of a quadratic: beta of an
         # ellipse is one), kept a quarter of the width from either end so that the bracket
         # shrinks by at least a quarter per step
         width = hi - lo
         mid = np.minimum(np.maximum(lo - glo * width / denom, lo + 0.25 * width), hi - 0.25 * width)
         fm, gm = _line_beta(P[act], a[act], d[act], mid)
-        keep = ~ok & (fm > 0)
+        hit = ~ok & (fm <= 0)
+        blocked[seg[act[hit]]] = True
+        keep = ~ok & ~hit
+        keep &= ~blocked[seg[act]]
         left = gm < 0  # minimum right of mid
         lo = np.where(left, mid, lo)
         flo = np.where(left, fm, flo)
@@ -189,19 +196,28 @@ def _misses(P: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         fhi = np.where(left, fhi, fm)
         ghi = np.where(left, ghi, gm)
         act, lo, hi, flo, glo, fhi, ghi = (v[keep] for v in (act, lo, hi, flo, glo, fhi, ghi))
-    return out
+    blocked[seg[act]] = True  # undecided
+    return blocked
 
 
 def _point_segment_distance(c: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Distances ``(K, M)`` from centres ``c (M, 2)`` to segments ``[a, b] (K, 2)``."""
-    d = b - a
-    dd = np.einsum("ij,ij->i", d, d)
-    rel = c[None, :, :] - a[:, None, :]
+    return np.sqrt(_point_segment_distance2(c, a, b))
+
+
+def _point_segment_distance2(c: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Squared distances ``(K, M)`` from centres ``c (M, 2)`` to segments ``[a, b] (K, 2)``
+    (component arrays, no ``(K, M, 2)`` temporaries)."""
+    dx, dy = (b[:, 0] - a[:, 0])[:, None], (b[:, 1] - a[:, 1])[:, None]
+    dd = dx * dx + dy * dy
+    rx = c[None, :, 0] - a[:, 0][:, None]
+    ry = c[None, :, 1] - a[:, 1][:, None]
     with np.errstate(divide="ignore", invalid="ignore"):
-        t = np.where(dd[:, None] > 0, np.einsum("kmj,kj->km", rel, d) / np.where(dd > 0, dd, 1.0)[:, None], 0.0)
-    t = np.clip(t, 0.0, 1.0)
-    foot = a[:, None, :] + t[..., None] * d[:, None, :]
-    return np.linalg.norm(c[None, :, :] - foot, axis=-1)
+        t = np.where(dd > 0, (rx * dx + ry * dy) / np.where(dd > 0, dd, 1.0), 0.0)
+    np.clip(t, 0.0, 1.0, out=t)
+    fx = rx - t * dx
+    fy = ry - t * dy
+    return fx * fx + fy * fy
 
 
 def segments_clear(P: np.ndarray, a, b) -> np.ndarray:
@@ -227,17 +243,15 @@ def segments_clear(P: np.ndarray, a, b) -> np.ndarray:
     if K == 0 or M == 0:
         return clear
     radius = np.hypot(P[:, 4], P[:, 5])  # half-diagonal of the bounding rectangle
+    reach2 = (radius * (1.0 + 1e-9)) ** 2
     step = max(1, _CHUNK // M)
     for lo in range(0, K, step):
         hi = min(K, lo + step)
-        near = _point_segment_distance(P[:, :2], a[lo:hi], b[lo:hi]) <= radius[None, :] * (1.0 + 1e-9)
+        near = _point_segment_distance2(P[:, :2], a[lo:hi], b[lo:hi]) <= reach2[None, :]
         k, m = np.nonzero(near)
         if k.size == 0:
             continue
-        miss = _misses(P[m], a[lo:hi][k], b[lo:hi][k])
-        blocked = np.zeros(hi - lo, dtype=bool)
-        blocked[k[~miss]] = True
-        clear[lo:hi] &= ~blocked
+        clear[lo:hi] &= ~_blocked(P[m], a[lo:hi][k], b[lo:hi][k], k, hi - lo)
     return clear
 
 
@@ -519,8 +533,8 @@ class Roadmap:
             step = max(1, _CHUNK // len(P_gone))
             for lo in range(0, len(i), step):
                 hi = min(len(i), lo + step)
-                d = _point_segment_distance(P_gone[:, :2], pts_old[i[lo:hi]], pts_old[j[lo:hi]])
-                near[lo:hi] = np.any(d <= radius[None, :] * (1.0 + 1e-9), axis=1)
+                d2 = _point_segment_distance2(P_gone[:, :2], pts_old[i[lo:hi]], pts_old[j[lo:hi]])
+                near[lo:hi] = np.any(d2 <= ((radius * (1.0 + 1e-9)) ** 2)[None, :], axis=1)
             i, j = i[near], j[near]
         reopened = self._visible(P, pts, i, j, self.config.vicinity)
         # pairs of the hidden vertices with every vertex
