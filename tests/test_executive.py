@@ -450,3 +450,91 @@ def test_a_region_placed_around_the_robot_counts_as_entered():
     ex.set_regions({"s": {"center": [x, y], "radius": 0.1}})
     ex.tick(world.robot.start, now=0.0)
     assert ex.visited == ["s"] and ex.state is ExecutiveState.EXECUTING and ex.target == "a"
+
+
+# ---------------------------------------------------------------------- roadmaps and legs
+def _sets(rm):
+    import numpy as np
+
+    V = {tuple(np.round(p, 9)) for p in rm.points}
+    E = {frozenset((tuple(np.round(rm.points[a], 9)), tuple(np.round(rm.points[b], 9)))) for a, b in rm.pairs}
+    return V, E
+
+
+def test_roadmaps_follow_the_obstacle_model_lazily_and_exactly():
+    from navigation.geometry import Squircle
+    from tamp.executive import _Roads
+    from tamp.roadmap import Roadmap, RoadmapConfig
+
+    world = shared_world("office")
+    r = world.robot.radius
+    known = list(world.obstacles[:10])
+    model = {("known", i): o for i, o in enumerate(known)}
+    roads = _Roads(world.workspace, r, 0.15, model, rebuild_after=2)
+    roads.current()
+    # an estimate updated twice before the roadmap is needed: only its current shape goes in
+    o = world.obstacles[12]
+    for scale in (0.8, 0.9, 1.0):
+        model[("estimate", 0)] = Squircle(o.center, o.width * scale, o.height * scale, o.theta, o.s)
+    rm = roads.current()
+    assert rm.obstacles[-1] is model[("estimate", 0)] and len(rm.obstacles) == 11
+    assert roads.stale == 0
+    # a grown replacement covers the old shape: not stale; a moved one is
+    model[("estimate", 0)] = Squircle(o.center, o.width * 1.2, o.height * 1.2, o.theta, o.s)
+    roads.current()
+    assert roads.stale == 0 and roads.outdated
+    for k, dx in enumerate((0.3, 0.6)):
+        model[("estimate", 0)] = Squircle((o.center[0] + dx, o.center[1]), o.width, o.height, o.theta, o.s)
+        roads.current()
+        assert roads.stale == k + 1
+    # one more stale shape than rebuild_after: the stale shapes are taken out exactly
+    del model[("estimate", 0)]
+    rm = roads.current()
+    assert roads.stale == 0 and not roads.outdated and roads.removals == 1
+    scratch = Roadmap.build(world.workspace, list(model.values()), r, RoadmapConfig(buffer=0.15))
+    assert set(map(id, rm.obstacles)) == set(map(id, model.values()))
+    assert _sets(rm) == _sets(scratch)
+
+
+def test_leg_shortcuts_drop_out_and_back_waypoints_and_stay_safe():
+    import numpy as np
+
+    world = shared_world("office")
+    ex = Executive(world, known=True)
+    rm = ex._roads[0].current()
+    rng = np.random.default_rng(1)
+    checked = 0
+    for _ in range(200):
+        a, b = rm.points[rng.choice(len(rm.points), 2, replace=False)]
+        if not rm.visible(a[None], b[None])[0]:
+            continue
+        # a detour out and back: a vertex visible from a, then b
+        back = [p for p in rm.points if rm.visible(a[None], p[None])[0] and rm.visible(p[None], b[None])[0]
+                and np.linalg.norm(p - a) > 0.1]
+        if not back:
+            continue
+        p = back[rng.integers(len(back))]
+        leg = ((*a, 0.0), (*p, 0.0), (*b, 0.0))
+        out = ex._shortcut(leg)
+        assert out == (leg[0], leg[-1])
+        checked += 1
+        if checked >= 10:
+            break
+    assert checked >= 5
+    # a tree's own path: a subsequence with the same ends, never longer, every segment safe
+    names = list(world.regions)
+    for s, g in zip(names[:-1], names[1:]):
+        cs, cg = world.regions[s].center, world.regions[g].center
+        tree = ex._tree((*cs, 0.0), (*cg, 0.0))
+        wps = tuple(tuple(w) for w in tree.waypoints)
+        out = ex._shortcut(wps)
+        assert out[0] == wps[0] and out[-1] == wps[-1] and set(out) <= set(wps)
+        length = lambda w: sum(math.dist(p[:2], q[:2]) for p, q in zip(w[:-1], w[1:]))
+        assert length(out) <= length(wps) + 1e-12
+        # segments that skip a waypoint are visible at the buffer (the others are tree edges)
+        idx = [wps.index(w) for w in out]
+        skips = [(out[k], out[k + 1]) for k in range(len(out) - 1) if idx[k + 1] > idx[k] + 1]
+        if skips:
+            a = np.array([u[:2] for u, _ in skips])
+            b = np.array([v[:2] for _, v in skips])
+            assert rm.visible(a, b).all()
