@@ -53,6 +53,7 @@ Symbols
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -81,7 +82,8 @@ class RoadmapConfig:
         Distance of a vertex outside its buffered obstacle ``G_j`` (m), > 0 so that edges can
         leave it.
     vertices_per_obstacle : int
-        Boundary vertices per obstacle, a positive multiple of 4 (8 includes the corners).
+        Boundary vertices per obstacle, a positive multiple of 4 (8 includes the corners);
+        doubled for an obstacle until the chords between neighbouring vertices miss it.
     vicinity : float
         Longest edge (m): the "free vicinity" of a vertex; ``inf`` connects every visible pair.
     """
@@ -256,12 +258,29 @@ def segments_clear(P: np.ndarray, a, b) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------- roadmap
+_MAX_VERTICES = 64  # boundary vertices of one obstacle at most (see _boundary_vertices)
+
+
 def _boundary_vertices(G: Squircle, n: int, offset: float) -> np.ndarray:
-    """``n`` points at normalised angles ``2 pi k / n`` on ``G``, pushed ``offset`` outwards."""
-    pts = G.point_at(2.0 * np.pi * np.arange(n) / n)
-    normal = G.gradient(pts)
-    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
-    return pts + offset * normal
+    """``n`` points at normalised angles ``2 pi k / n`` on ``G``, pushed ``offset`` outwards, with
+    ``n`` doubled (up to ``_MAX_VERTICES``) until every chord between neighbouring points misses
+    ``G``: around a large rounded obstacle (an ellipse of 1 m semi-axis: sagitta of a 45 degree
+    arc 0.076 m > offset 0.05 m) the 8 points' chords cut through it, and the roadmap could
+    not go around it. Memoised per (squircle, n, offset)."""
+    return _boundary_vertices_cached(G, int(n), float(offset)).copy()
+
+
+@functools.lru_cache(maxsize=4096)
+def _boundary_vertices_cached(G: Squircle, n: int, offset: float) -> np.ndarray:
+    P = pack([G])
+    while True:
+        pts = G.point_at(2.0 * np.pi * np.arange(n) / n)
+        normal = G.gradient(pts)
+        normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+        pts = pts + offset * normal
+        if n >= _MAX_VERTICES or segments_clear(P, pts, np.roll(pts, -1, axis=0)).all():
+            return pts
+        n *= 2
 
 
 def _outside_all(P: np.ndarray, ws: Squircle, pts: np.ndarray) -> np.ndarray:
@@ -364,7 +383,7 @@ class Roadmap:
         n = config.vertices_per_obstacle
         for k in indices:
             pts.append(_boundary_vertices(G[k], n, config.offset))
-            owner.append(np.full(n, k, dtype=np.intp))
+            owner.append(np.full(len(pts[-1]), k, dtype=np.intp))
         return np.concatenate(pts), np.concatenate(owner)
 
     @staticmethod

@@ -382,3 +382,19 @@ def test_benchmark_quick_run_renders(tmp_path):
     assert main(["--quick", "--out", str(tmp_path)]) == 0
     table = (tmp_path / "harmonic_tree.md").read_text()
     assert "| simple (known) |" in table and "| simple | 4 |" in table
+
+
+def test_large_rounded_obstacles_get_enough_vertices_to_go_around():
+    # an ellipse of about 1 m semi-axes: with 8 vertices 0.05 m off it, the chords between
+    # neighbouring vertices cut through it (sagitta 0.076 m); the roadmap must still go around
+    world = random_world(0)
+    big = Squircle((2.5, 2.5), 1.6, 2.0, 0.3, 0.0)
+    rm = Roadmap.build(world.workspace, [big], world.robot.radius)
+    own = rm.points[rm.owner == 0]
+    assert len(own) > 8 and len(own) % 8 == 0
+    G = pack([rm.buffered[0]])
+    assert segments_clear(G, own, np.roll(own, -1, axis=0)).all()
+    start, goal = (2.5, 0.8, 0.0), (2.5, 4.2, 0.0)  # opposite sides: no direct segment
+    assert not rm.visible(np.array([start[:2]]), np.array([goal[:2]]))[0]
+    tree = plan_tree(rm, start, goal)
+    _check_tree(tree, rm, start, goal)
