@@ -97,7 +97,7 @@ _SAMPLES = 256  # boundary samples per obstacle
 _WS_SAMPLES = 1024  # boundary samples of the workspace
 _POLY = 128  # vertices of the polygons inscribed in a child and its parent (common centres)
 _WS_TANGENTS = 8  # tangent lines of the workspace tried for a child of the workspace
-_THIN_ROTATIONS = (0.39,)  # rotated re-polls of the thin-intersection pattern search
+_THIN_TANGENTS = 48  # tangent lines per boundary arc of a thin intersection
 _FAR_RAYS = 720  # rays from the common centre of a workspace child sampling its far gap
 _THIN = 0.01  # common-centre depths below this are refined with exact distances
 _CONTAINED = 1e-12  # beta tolerance of the containment test
@@ -901,54 +901,91 @@ def _common_centers(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, outsi
     return c, depth
 
 
+def _arc_tangents(body: _Body, inside: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``n`` boundary points of ``body`` spread over the arc of its samples flagged ``inside``
+    (one circular run; widened by one sample gap at each end, or the neighbourhood of the
+    sample of largest ``inside`` score when none is flagged), with their outward unit normals:
+    ``(points (n, 2), normals (n, 2), psi (n,))``."""
+    psi = body.psi
+    m = len(psi)
+    if inside.dtype == bool:
+        idx = np.nonzero(inside)[0]
+    else:
+        idx = np.nonzero(inside > 0)[0]
+        if idx.size == 0:
+            idx = np.array([int(np.argmax(inside))])
+    if idx.size == m:
+        lo, hi = 0.0, 2.0 * np.pi
+    else:
+        # the run starts after the first gap in the flags (circularly)
+        flags = np.zeros(m, bool)
+        flags[idx] = True
+        start = int(np.nonzero(flags & ~np.roll(flags, 1))[0][0])
+        length = int(np.argmin(np.roll(flags, -start))) or m
+        a, b = start - 1, start + length  # one sample beyond each end
+        lo = psi[a % m] - (2.0 * np.pi if a < 0 else 0.0)
+        hi = psi[b % m] + 2.0 * np.pi * (b // m)
+        if hi <= lo:
+            hi += 2.0 * np.pi
+    ps = np.linspace(lo, hi, n)
+    x, dx, _ = boundary_jet_rows(np.broadcast_to(body.row, (n, 7)), ps)
+    normal = np.stack((dx[:, 1], -dx[:, 0]), axis=1) / np.linalg.norm(dx, axis=1, keepdims=True)
+    return x, normal, ps
+
+
 def _thin_centers(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, sgn: np.ndarray, c: np.ndarray,
                   depth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Common centres of thin intersections (lens-shaped, thinner than the sample spacing).
+    """Common centres of thin intersections (lens-shaped, about as thin as the polygons'
+    sagitta), from tangent lines instead of inscribed polygons.
 
-    The boundary point ``a`` of ``O_I`` deepest in ``O_J`` (or outside the workspace) spans the
-    lens at its thickest; the centre starts half that depth inside ``O_I`` from ``a`` and is
-    polished by a pattern search on the exact distances. The better of this and the current
-    estimate ``c`` is returned.
+    Near a thin lens the depth in a convex set is the distance to the nearest of its tangent
+    lines at the lens: ``_THIN_TANGENTS`` tangent half-planes of ``O_I`` along its boundary
+    arc inside the other set, and of ``O_J`` along its arc inside ``O_I``, make a linear
+    program (:func:`_max_min_slack`) whose optimum is the deepest point up to the tangents'
+    spacing. A child of the workspace: the points beyond a tangent line of the workspace (at its
+    arc inside ``O_I``) lie outside it by at least their distance to the line, so each of
+    ``_WS_TANGENTS`` such lines gives one program with the child's half-planes and the best
+    result is kept. Every candidate's depth is then evaluated exactly; the better of it and the
+    current estimate ``c`` (depth ``depth``) is returned.
     """
     K = len(I)
-    PI = np.stack([bodies[i].row for i in I])
-
-    def depth_j(rows, q):  # depth of points q (k, n, 2) in O_J (outside the workspace)
-        k, n = q.shape[:2]
-        sd = _signed_distance(bodies, np.repeat(J[rows], n), q.reshape(-1, 2)).reshape(k, n)
-        return sgn[rows, None] * sd
-
-    psi0, w0 = np.empty(K), np.empty(K)
+    A, B, LO, HI, L, owner = [], [], [], [], [], []
+    n = _THIN_TANGENTS
     for k in range(K):
-        bi = bodies[I[k]]
-        vals = sgn[k] * _beta(bodies[J[k]].row[None], bi.pts[None])[0]  # larger: deeper in the J-set
-        a = int(np.argmax(vals))
-        psi0[k], w0[k] = bi.psi[a], bi.w0
-    rows = np.arange(K)
-    f0 = -depth_j(rows, _xy(PI, psi0[:, None]))[:, 0]
-    psi, f = _pattern_min(lambda r, ps: -depth_j(r, _xy(PI[r], ps[..., 0])), psi0[:, None], w0[:, None], f0,
-                          m=9, shrink=0.3, tol=1e-10)
-    a, da, _ = boundary_jet_rows(PI, psi[:, 0])
-    span = np.maximum(-f, 0.0)
-    # outward normal: the (counter-clockwise) tangent turned clockwise, exact
-    normal = np.stack((da[:, 1], -da[:, 0]), axis=1) / np.linalg.norm(da, axis=1, keepdims=True)
-    start = a - 0.5 * span[:, None] * normal
-
-    def objective(r, q):
-        k, n = q.shape[:2]
-        di = -_signed_distance(bodies, np.repeat(I[r], n), q.reshape(-1, 2)).reshape(k, n)
-        return -np.minimum(di, depth_j(r, q))
-
-    fs = objective(rows, start[:, None, :])[:, 0]
-    use = fs < -depth
-    c0 = np.where(use[:, None], start, c)
-    f0 = np.where(use, fs, -depth)
-    w = np.maximum(0.5 * np.maximum(span, -f0), 1e-6)[:, None].repeat(2, axis=1)
-    for rot in (0.0, *_THIN_ROTATIONS):
-        c0, f0 = _pattern_min(objective, c0, w, f0, m=5, shrink=0.5, tol=1e-3 * float(w.min()) + 1e-9,
-                              max_rounds=40, rotation=rot)
-        w = 0.1 * w
-    return c0, -f0
+        bi, bj = bodies[I[k]], bodies[J[k]]
+        score = sgn[k] * _beta(bj.row[None], bi.pts[None])[0]  # > 0: in the J-set
+        xi, ni, _ = _arc_tangents(bi, score, n)
+        ai, b_i = ni, (ni * xi).sum(-1)
+        inside_i = _beta(bi.row[None], bj.pts[None])[0] < 0  # J's samples inside O_I
+        xj, nj, _ = _arc_tangents(bj, inside_i if inside_i.any() else -_beta(bi.row[None], bj.pts[None])[0], n)
+        box = np.concatenate((xi, xj))
+        lo, hi = box.min(0), box.max(0)
+        scale = max(float(np.min(hi - lo)), 1e-6)
+        if sgn[k] < 0:  # inner parent: inside both
+            lines = [(np.concatenate((ai, nj)), np.concatenate((b_i, (nj * xj).sum(-1))))]
+        else:  # the workspace: beyond one of its tangent lines
+            pick = np.unique(np.linspace(0, n - 1, min(_WS_TANGENTS, n)).round().astype(int))
+            lines = [(np.concatenate((ai, -nj[[t]])), np.concatenate((b_i, -(nj[[t]] * xj[[t]]).sum(-1))))
+                     for t in pick]
+        for a_, b_ in lines:
+            A.append(a_)
+            B.append(b_)
+            LO.append(lo)
+            HI.append(hi)
+            L.append(scale)
+            owner.append(k)
+    width = max(len(b) for b in B)
+    A = np.stack([np.concatenate((a, np.zeros((width - len(a), 2)))) for a in A])
+    B = np.stack([np.concatenate((b, np.full(width - len(b), 1e200))) for b in B])
+    owner = np.asarray(owner)
+    q, _ = _max_min_slack(A, B, np.array(LO), np.array(HI), np.array(L))
+    d = np.minimum(-_signed_distance(bodies, I[owner], q), sgn[owner] * _signed_distance(bodies, J[owner], q))
+    c, depth = c.copy(), depth.copy()
+    for r in np.argsort(-d, kind="stable"):
+        k = owner[r]
+        if d[r] > depth[k]:
+            c[k], depth[k] = q[r], d[r]
+    return c, depth
 
 
 # ---------------------------------------------------------------------- public helpers
