@@ -58,7 +58,7 @@ def descend(nf, start, **kwargs) -> DescentResult:
     return descend_many(nf, pts, **kwargs)[0]
 
 
-def descend_many(nf, starts, *, step: float | None = None, tol: float = 1e-3, max_steps: int = 5000,
+def descend_many(nf, starts, *, step: float | None = None, tol: float = 1e-3, max_steps: int = 100_000,
                  max_halvings: int = 40, checks: int = 4) -> list[DescentResult]:
     """Descend from every row of ``starts (N, 2)`` together.
 
@@ -70,7 +70,10 @@ def descend_many(nf, starts, *, step: float | None = None, tol: float = 1e-3, ma
     tol : float
         Success radius around the goal (m).
     max_steps, max_halvings : int
-        Iteration limits (per run, and per step of the line search).
+        Iteration limits (per run, and per step of the line search). Most runs take a few
+        hundred steps; runs that pass next to chained walls creep along narrow valleys of the
+        field (docs/navigation.md, "Conditioning next to chained walls") with steps of 1e-5 m
+        and have taken up to about 20 000 (office); the default cap leaves room for that.
     checks : int
         Interior points of each step's segment that must be free as well.
     """
