@@ -39,7 +39,8 @@ from .errors import WorldError
 from .forest import Forest, build_forest
 from .geometry import Squircle
 
-__all__ = ["World", "Region", "RobotSpec", "LidarSpec", "Event", "EventMode", "load_world", "REGION_NAME"]
+__all__ = ["World", "Region", "RobotSpec", "LidarSpec", "Event", "EventMode", "load_world", "REGION_NAME",
+           "disc_violations"]
 
 #: Region names are the LTL atomic propositions (FORMATS.md "LTL syntax").
 REGION_NAME = re.compile(r"[a-z][a-z0-9_]*\Z")
@@ -393,22 +394,12 @@ class World:
         centers = np.array([c for _, _, c, _ in discs], dtype=float)
         radii = np.array([r for _, _, _, r in discs])
 
-        depth = -np.atleast_1d(self.workspace.distance(centers))
-        for k in range(len(discs)):
-            if depth[k] < radii[k]:
-                path, what = discs[k][0], discs[k][1]
-                raise WorldError(f"{path}: {what} is not inside the workspace (its centre is {depth[k]:.3g} m "
+        for k, rule, value in disc_violations(self.workspace, self.obstacles, centers, radii):
+            path, what = discs[k][0], discs[k][1]
+            if rule == "workspace":
+                raise WorldError(f"{path}: {what} is not inside the workspace (its centre is {value:.3g} m "
                                  f"inside the boundary, {radii[k]:g} m needed)", path)
-        clear = np.ones((len(discs), len(self.obstacles)), bool)
-        for j, o in enumerate(self.obstacles):
-            near = np.nonzero(np.linalg.norm(centers - o.c, axis=1) <= o.bounding_radius + radii)[0]
-            if near.size:
-                clear[near, j] = np.atleast_1d(o.distance(centers[near])) >= radii[near]
-        for k in range(len(discs)):
-            if not clear[k].all():
-                j = int(np.argmin(clear[k]))
-                path, what = discs[k][0], discs[k][1]
-                raise WorldError(f"{path}: {what} overlaps obstacles[{j}]", path)
+            raise WorldError(f"{path}: {what} overlaps obstacles[{value[0]}]", path)
         names = list(self.regions)
         for b in range(len(names)):
             for a in range(b):
@@ -490,6 +481,30 @@ def _builtin_world(name: str):
         return None
     res = importlib.resources.files("navigation") / "data" / "worlds" / f"{name}.json"
     return res if res.is_file() else None
+
+
+def disc_violations(workspace: Squircle, obstacles: Sequence[Squircle], centers, radii):
+    """The discs ``(centers[k], radii[k])`` that break FORMATS.md's validity rule: the first
+    problem of each disc, in disc order, as ``(k, "workspace", depth)`` (not inside the
+    workspace: its centre is ``depth`` m inside the boundary, less than the radius) or
+    ``(k, "free_space", (j, distance))`` (overlaps obstacle ``j``, its centre ``distance`` m from
+    it). One checker for the world files (:meth:`World.validate`) and the regions changed at
+    run time (the executive)."""
+    centers = np.asarray(centers, dtype=float).reshape(-1, 2)
+    radii = np.asarray(radii, dtype=float).reshape(-1)
+    depth = -np.atleast_1d(workspace.distance(centers)) if len(centers) else np.zeros(0)
+    dist = np.full((len(centers), len(obstacles)), np.inf)
+    for j, o in enumerate(obstacles):
+        near = np.nonzero(np.linalg.norm(centers - o.c, axis=1) <= o.bounding_radius + radii)[0]
+        if near.size:
+            dist[near, j] = np.atleast_1d(o.distance(centers[near]))
+    for k in range(len(centers)):
+        if depth[k] < radii[k]:
+            yield k, "workspace", float(depth[k])
+            continue
+        bad = np.nonzero(dist[k] < radii[k])[0]
+        if bad.size:
+            yield k, "free_space", (int(bad[0]), float(dist[k, bad[0]]))
 
 
 def load_world(path: str | os.PathLike) -> World:

@@ -97,7 +97,7 @@ from navigation.forest import build_forest
 from navigation.geometry import Squircle, beta_rows, pack
 from navigation.oriented import OrientedField
 from navigation.potential import NavigationFunction
-from navigation.world import Region, World, configuration_space
+from navigation.world import Region, World, configuration_space, disc_violations
 from perception.errors import ScanError
 from perception.fit import inflate
 from perception.map import ObstacleMap
@@ -655,29 +655,26 @@ class Executive:
     def _check_regions(self, regions: dict, changed) -> None:
         """FORMATS.md's validity rule for the changed regions against the current map."""
         r = self.radius
-        ws = self.world.workspace
-        obstacles = self.obstacles
         n_known = len(self.known)
-        for name in changed:
-            reg = regions[name]
-            c = np.asarray(reg.center, dtype=float)
+        names = list(changed)
+        centers = [regions[n].center for n in names]
+        for k, rule, value in disc_violations(self.world.workspace, self.obstacles, centers,
+                                              [regions[n].radius + r for n in names]):
+            name, reg = names[k], regions[names[k]]
             need = reg.radius + r
-            depth = -float(ws.distance(c))
-            if depth < need:
+            if rule == "workspace":
                 raise RegionError(name, RegionRule.WORKSPACE,
                                   f"disc (radius {reg.radius:g}) grown by the robot radius {r:g} is not inside the "
-                                  f"workspace (its centre is {depth:.3g} m inside the boundary, {need:.3g} m needed)")
-            for j, o in enumerate(obstacles):
-                if math.dist(c, o.c) > o.bounding_radius + need:
-                    continue
-                d = float(o.distance(c))
-                if d < need:
-                    what = f"known obstacle {j}" if j < n_known else f"obstacle estimate {j - n_known}"
-                    raise RegionError(name, RegionRule.FREE_SPACE,
-                                      f"disc (radius {reg.radius:g}) grown by the robot radius {r:g} is not in free "
-                                      f"space: it overlaps {what} (centre {d:.3g} m from it, {need:.3g} m needed)")
+                                  f"workspace (its centre is {value:.3g} m inside the boundary, {need:.3g} m needed)")
+            j, d = value
+            what = f"known obstacle {j}" if j < n_known else f"obstacle estimate {j - n_known}"
+            raise RegionError(name, RegionRule.FREE_SPACE,
+                              f"disc (radius {reg.radius:g}) grown by the robot radius {r:g} is not in free "
+                              f"space: it overlaps {what} (centre {d:.3g} m from it, {need:.3g} m needed)")
+        for name in names:
+            reg = regions[name]
             for other, o in regions.items():
-                if other != name and math.dist(c, o.center) <= reg.radius + o.radius:
+                if other != name and math.dist(reg.center, o.center) <= reg.radius + o.radius:
                     raise RegionError(name, RegionRule.DISJOINT,
                                       f"disc overlaps region {other!r} (regions must be pairwise disjoint)")
 
