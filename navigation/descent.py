@@ -5,7 +5,8 @@ The holonomic use of eq. (9): from each start, follow the normalised negative gr
 gradient flow ``dq/dt = -grad phi_NF`` (``ds = |grad phi_NF| dt`` only reparametrises them), so
 only their direction matters and saturation of the logistic does not. Near chained walls the
 chain of maps is strongly anisotropic and the flow runs along narrow, stiff valleys (see
-docs/navigation.md, "Known limitation"), where explicit steps zig-zag with vanishing length.
+docs/navigation.md, "Conditioning next to chained walls"), where explicit steps zig-zag with
+vanishing length.
 Steps are therefore *linearly implicit* (a Rosenbrock-Euler step of the gradient flow, stable
 for stiff flows): with the exact gradient ``g`` and Hessian ``H``,
 

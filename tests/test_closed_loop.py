@@ -9,8 +9,8 @@ by the robot radius for the field), the robot must
 * end within 0.05 m and 0.1 rad of the goal pose - asserted strictly on ``simple``. On
   ``office`` and the random forest worlds some runs still time out creeping along narrow
   valleys of the field next to chained walls (the open conditioning defect of issue 2, see
-  docs/navigation.md "Known limitation" and docs/control.md); there the test reports the count
-  and is an expected failure (``xfail``, not skipped: an unexpected pass shows as XPASS).
+  docs/navigation.md "Conditioning next to chained walls" and docs/control.md); there the
+  test reports the count and is an expected failure (``xfail``, not skipped: an unexpected pass shows as XPASS).
 
 Sizes: the default run uses a reduced sample (``simple`` 10 starts, ``office`` 5, random worlds
 0-1 with 5 each); ``-m slow`` runs the issue's size, 100 starts on ``simple``, ``office`` and 30

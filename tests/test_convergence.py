@@ -16,14 +16,12 @@ be rare (at most 2 per world and goal), and descending again from the end point 
 ``"max_steps"`` run, a stall where the gradient does not vanish or without negative curvature)
 fails, with the start, end point, reason and value reported.
 
-Known limitation (issue 2 is open): next to chained walls the field has creases (valleys as narrow
-as micrometres along wall faces, see docs/navigation.md "Known limitation") in which descent runs
-out of steps. Measured with the stiff (implicit) descent steps, 100 starts per world and goal,
-5000 steps: simple 200/200, cluttered20 200/200, office 118/200, random worlds see
-docs/navigation.md. The guarantee is therefore asserted strictly on ``simple`` (default run) and
-``cluttered20`` (``-m slow``); office and the random worlds run with ``-m slow`` and are marked as
-expected failures until the conditioning is fixed (they are not skipped: an unexpected pass is
-reported as XPASS).
+Next to chained walls the field is badly conditioned (docs/navigation.md, "Conditioning next
+to chained walls"): descents there creep along narrow valleys with steps of about 1e-5 m and take
+up to about 40 000 steps, so ``descend_many``'s default cap is 100 000 steps. Every world and goal
+is asserted strictly: ``simple`` and two random worlds in the default run, ``office``,
+``cluttered20`` and the 50 random worlds with ``-m slow`` (about an hour on one core: the worlds
+with chained walls dominate).
 """
 
 from __future__ import annotations
@@ -40,6 +38,7 @@ from .worldgen import random_forest_world, random_free_points
 
 SHARED_WORLDS = ("simple", "office", "cluttered20")
 SLOW_RANDOM_SEEDS = tuple(range(50))
+CI_RANDOM_SEEDS = (1, 2)
 N_STARTS = 100
 SEGMENT_SAMPLES = 20
 MAX_SADDLES = 2  # per world and goal
@@ -136,14 +135,9 @@ def check_convergence(world, goal, starts: np.ndarray, label: str) -> None:
                           f"{len(failures)} failure(s):\n  " + "\n  ".join(failures[:40]))
 
 
-CREASES = ("creases of the field along chained walls (docs/navigation.md, Known limitation): "
-           "some descents run out of steps; issue 2 open")
-_KNOWN_CREASES = pytest.mark.xfail(reason=CREASES, strict=False)
-
-
 @pytest.mark.parametrize("name", [
     "simple",
-    pytest.param("office", marks=[pytest.mark.slow, _KNOWN_CREASES]),
+    pytest.param("office", marks=pytest.mark.slow),
     pytest.param("cluttered20", marks=pytest.mark.slow),
 ])
 @pytest.mark.parametrize("goal_index", (0, 1))
@@ -197,8 +191,13 @@ def _random_world_case(seed: int) -> None:
     check_convergence(world, goal, starts, world.name)
 
 
+@pytest.mark.parametrize("seed", CI_RANDOM_SEEDS)
+def test_descent_reaches_goal_random_world(seed):
+    """The CI-sized sample of the random-world run below (two worlds whose descents are quick)."""
+    _random_world_case(seed)
+
+
 @pytest.mark.slow
-@_KNOWN_CREASES
 @pytest.mark.parametrize("seed", SLOW_RANDOM_SEEDS)
 def test_descent_reaches_goal_random_world_many(seed):
     _random_world_case(seed)
