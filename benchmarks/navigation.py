@@ -72,7 +72,7 @@ TARGET_OBSTACLES = 20
 #: rows whose obstacle count is at most this are held to the targets (office has 22)
 TARGET_APPLIES_UP_TO = 25
 
-FULL = {"forest_repeats": 7, "construction_repeats": 50, "update_picks": 7, "points": 200, "batch_repeats": 7,
+FULL = {"forest_repeats": 21, "construction_repeats": 50, "update_picks": 7, "points": 200, "batch_repeats": 7,
         "grid_repeats": 7}
 QUICK = {"forest_repeats": 1, "construction_repeats": 3, "update_picks": 2, "points": 10, "batch_repeats": 1,
          "grid_repeats": 1}
