@@ -178,9 +178,34 @@ def test_residual_jacobian_matches_finite_differences():
         assert np.allclose(J, Jn, rtol=1e-5, atol=1e-6 * np.abs(Jn).max())
 
 
+
+def test_lm_problem_matches_the_residuals():
+    """``_Problem`` (points and free points in one array, Jacobian rows only where they are not
+    zero) gives the values of ``_residuals`` and ``_residuals_jac``."""
+    from perception.fit import _Problem, _residuals, _residuals_jac
+
+    rng = np.random.default_rng(1)
+    for k in range(20):
+        p = np.array([0.3, -0.2, math.log(0.6), math.log(0.2), 0.4, 0.8]) + rng.normal(scale=0.05, size=6)
+        q = rng.normal(scale=0.7, size=(40, 2))
+        free = rng.normal(scale=0.5, size=(15 * (k % 3), 2))
+        ref = (0.5, 0.25, 2.0) if k % 2 else None
+        wq = rng.uniform(0.1, 1.0, size=40) if k % 4 < 2 else None
+        prob = _Problem(q, free, 1.0, ref, wq)
+        r, g = prob.residuals(p)
+        assert np.allclose(r, _residuals(p, q, free, 1.0, ref, wq), rtol=0, atol=1e-14)
+        J, rows = prob.jacobian(p, g)
+        full = _residuals_jac(p, q, free, 1.0, ref, wq)
+        rows = np.arange(len(full)) if rows is None else rows
+        assert np.allclose(J, full[rows], rtol=0, atol=1e-14)
+        rest = np.setdiff1d(np.arange(len(full)), rows)
+        assert not np.any(full[rest])
+
+
 @pytest.mark.parametrize("seed", range(4))
 def test_inflate_is_the_smallest_clear_step(seed):
-    """``inflate`` finds by bisection the same 3 % step as the linear search it replaces: the
+    """``inflate`` (linear search over the first steps, then bisection) finds the same 3 % step as
+    the linear search: the
     smallest ``k = 1.03^n`` whose candidate keeps ``r`` from the squircle (sampled bound)."""
     rng = np.random.default_rng(seed)
     for _ in range(10):
