@@ -294,13 +294,18 @@ class Squircle:
         if r < 0 and -2 * r >= min(self.width, self.height):
             raise ValueError(f"cannot shrink a {self.width} x {self.height} squircle by {-r}")
         k = 1.0
+        # growing: the offset curve is this squircle's, the same for every candidate
+        fixed = self.offset_points(r, samples) if r > 0 else None
         for _ in range(60):
             ext = 2.0 * k * r + math.copysign(2e-9, r)
             cand = Squircle(self.center, self.width + ext, self.height + ext, self.theta, self.s)
             if cand.width <= 0 or cand.height <= 0:
                 raise ValueError(f"cannot shrink a {self.width} x {self.height} squircle by {-r}")
-            inner, outer = (self, cand) if r > 0 else (cand, self)
-            if np.all(outer.beta(inner.offset_points(abs(r), samples)) <= 0.0):
+            if r > 0:
+                ok = np.all(cand.beta(fixed) <= 0.0)
+            else:
+                ok = np.all(self.beta(cand.offset_points(-r, samples)) <= 0.0)
+            if ok:
                 return cand
             k *= 1.05
         raise ValueError(f"could not grow squircle by {r}")  # pragma: no cover
