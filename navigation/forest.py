@@ -377,12 +377,12 @@ def _sample_rows(P: np.ndarray, n: int):
     fine = np.linspace(0.0, 2 * np.pi, F)
     # chord lengths do not depend on position and rotation: the unit squircle's chord vectors
     # (one per distinct s), scaled by the half-extents
-    seg = np.empty((K, F - 1))
-    for s in np.unique(P[:, S]):
-        rows = P[:, S] == s
-        unit = _xy(np.array([[0.0, 0.0, 1.0, 0.0, 1.0, 1.0, s]]), fine[None])[0]
-        du = np.diff(unit, axis=0)
-        seg[rows] = np.hypot(P[rows, HW, None] * du[:, 0], P[rows, HH, None] * du[:, 1])
+    svals, which = np.unique(P[:, S], return_inverse=True)
+    unit = np.zeros((len(svals), 7))
+    unit[:, COS] = unit[:, HW] = unit[:, HH] = 1.0
+    unit[:, S] = svals
+    du = np.diff(_xy(unit, np.broadcast_to(fine, (len(svals), F))), axis=1)[which]  # (K, F - 1, 2)
+    seg = np.hypot(P[:, HW, None] * du[..., 0], P[:, HH, None] * du[..., 1])
     arc = np.concatenate((np.zeros((K, 1)), np.cumsum(seg, axis=1)), axis=1)
     u = arc / arc[:, -1:]  # normalised arc length, 0 .. 1 per row
     # invert all rows at once: row k's nodes shifted by 2k keep the flattened array sorted
@@ -893,7 +893,8 @@ def _common_centers(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, outsi
     order = np.lexsort((-t, owner))  # per owner, the largest t first
     first = order[np.concatenate(([True], owner[order][1:] != owner[order][:-1]))]
     c = c[first][np.argsort(owner[first])]
-    depth = np.minimum(-_signed_distance(bodies, I, c), sgn * _signed_distance(bodies, J, c))
+    dI, dJ = np.split(_signed_distance(bodies, np.concatenate((I, J)), np.concatenate((c, c))), 2)
+    depth = np.minimum(-dI, sgn * dJ)
     # Thin intersections: the polygons lose up to their sagitta; refine on exact distances.
     thin = np.nonzero(depth < _THIN)[0]
     if thin.size:
@@ -979,7 +980,8 @@ def _thin_centers(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, sgn: np
     B = np.stack([np.concatenate((b, np.full(width - len(b), 1e200))) for b in B])
     owner = np.asarray(owner)
     q, _ = _max_min_slack(A, B, np.array(LO), np.array(HI), np.array(L))
-    d = np.minimum(-_signed_distance(bodies, I[owner], q), sgn[owner] * _signed_distance(bodies, J[owner], q))
+    dI, dJ = np.split(_signed_distance(bodies, np.concatenate((I[owner], J[owner])), np.concatenate((q, q))), 2)
+    d = np.minimum(-dI, sgn[owner] * dJ)
     c, depth = c.copy(), depth.copy()
     for r in np.argsort(-d, kind="stable"):
         k = owner[r]
