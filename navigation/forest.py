@@ -755,7 +755,9 @@ def _max_min_slack(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarray,
     """
     E = len(a)
     ax, ay = np.ascontiguousarray(a[..., 0]), np.ascontiguousarray(a[..., 1])
-    axx, axy, ayy = ax * ax, ax * ay, ay * ay
+    # the five weighted sums of a Newton step in one reduction: rows ax, ay, ax^2, ax ay, ay^2
+    moments = np.stack((ax, ay, ax * ax, ax * ay, ay * ay), axis=1)  # (E, 5, K)
+    lines = np.stack((ax, ay, b), axis=1)  # (E, 3, K): one gather per backtracking step
     u = (np.arange(grid) + 0.5) / grid
     gx, gy = np.meshgrid(u, u, indexing="ij")
     px = lo[:, 0, None] + (hi - lo)[:, 0, None] * gx.ravel()[None]  # (E, grid^2)
@@ -773,11 +775,11 @@ def _max_min_slack(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarray,
         f, w, _ = _soft_min(ax, ay, b, c, tau)
         act = np.arange(E)
         for _ in range(steps):
-            wa = w[act]
-            gx_, gy_ = -(wa * ax[act]).sum(1), -(wa * ay[act]).sum(1)
-            cxx = (wa * axx[act]).sum(1) - gx_ * gx_ + 1e-12
-            cxy = (wa * axy[act]).sum(1) - gx_ * gy_
-            cyy = (wa * ayy[act]).sum(1) - gy_ * gy_ + 1e-12
+            mom = (w[act][:, None, :] * moments[act]).sum(2)  # (k, 5)
+            gx_, gy_ = -mom[:, 0], -mom[:, 1]
+            cxx = mom[:, 2] - gx_ * gx_ + 1e-12
+            cxy = mom[:, 3] - gx_ * gy_
+            cyy = mom[:, 4] - gy_ * gy_ + 1e-12
             step = (tau[act] / (cxx * cyy - cxy * cxy))[:, None] * \
                 np.stack((cyy * gx_ - cxy * gy_, cxx * gy_ - cxy * gx_), 1)
             length = np.hypot(step[:, 0], step[:, 1])
@@ -788,7 +790,8 @@ def _max_min_slack(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarray,
             step *= np.minimum(1.0, radius[act] / length)[:, None]
             todo, st, full = act, step, np.ones(len(act), bool)
             for _ in range(30):  # backtracking
-                ft, wt, _ = _soft_min(ax[todo], ay[todo], b[todo], c[todo] + st, tau[todo])
+                lp = lines[todo]
+                ft, wt, _ = _soft_min(lp[:, 0], lp[:, 1], lp[:, 2], c[todo] + st, tau[todo])
                 ok = ft >= f[todo]
                 acc = todo[ok]
                 c[acc] += st[ok]
