@@ -874,12 +874,13 @@ class ObstacleMap:
             ctr = np.asarray(sq.center) + axis * shift
             w, hh = (2 * newh, sq.height) if k == 0 else (sq.width, 2 * newh)
             sq = Squircle((float(ctr[0]), float(ctr[1])), w, hh, th, sq.s)
-            inf = inflate(sq, self.radius)
-            d = float(sq.distance(p))
-            if d >= need and inf.beta(p) > 0:
-                break
-            if d >= need:  # the inflation (extents + 2 k r) bulges past the offset: cut deeper
-                need += 0.02
+            # clear by ``need``? (the rectangle gap is a lower bound of the distance: the exact
+            # distance only when it does not already decide; the inflation only when clear)
+            if _rect_gap(sq, p) >= need or float(sq.distance(p)) >= need:
+                inf = inflate(sq, self.radius)
+                if inf.beta(p) > 0:
+                    break
+                need += 0.02  # the inflation (extents + 2 k r) bulges past the offset: cut deeper
         else:
             inf = inflate(sq, self.radius)
         proposed[i] = Estimate(i, sq, inf, e.cluster, e.rms, e.closed)
