@@ -9,7 +9,7 @@ The map starts knowing only the workspace and grows from scans:
 2. **Evidence**: returns are averaged in ``voxel`` cells (with the directions they were seen
    from); the beams' paths, up to ``free_margin`` before their returns (``range_max`` for no
    return), mark ``free_cell`` cells as free.
-3. **Clustering** (incremental): a new cell joins every cell within ``link`` (k-d tree) and the
+3. **Clustering** (incremental): a new cell joins every cell within ``link`` (looked up on the voxel grid) and the
    cells of its neighbouring beams when the range discontinuity between them is below the
    breakpoint rule (:meth:`PerceptionConfig.breakpoint`); clusters that become connected merge.
 4. **Refit** of a cluster only when its data contradicts its estimates: a new cell more than
