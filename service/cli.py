@@ -95,7 +95,9 @@ def build_parser() -> argparse.ArgumentParser:
                                    "loopback until the mission completes or --duration, then print a summary.")
     _common(d, default_world="office")
     d.add_argument("--duration", type=_positive, default=300.0, help="give up after this many simulated seconds")
-    d.add_argument("--speed", type=_positive, default=1.0, help="simulation speed-up (simulated s per wall s)")
+    d.add_argument("--speed", type=_positive, default=1.0,
+                   help="simulation speed-up (simulated s per wall s), at most: the simulator waits for the "
+                        "service's answer to each pose, never running slower than real time")
     d.add_argument("--seed", type=int, default=0, help="lidar noise seed of the simulator")
     d.add_argument("--json", action="store_true", help="print the summary as one JSON object on stdout")
     return p
@@ -207,7 +209,7 @@ def _cmd_demo(a) -> int:
         try:
             print(f"tamp-service demo: {world.name}, task {brain.summary()['task']!r}, speed x{a.speed:g}, "
                   f"bus {listen[0]} prefix {cfg.key_prefix}", file=sys.stderr, flush=True)
-            node.run(a.duration / a.speed + 30.0, until=progress)
+            node.run(a.duration + 30.0, until=progress)  # paced: real time at worst
             time.sleep(min(0.5, 2.0 / a.speed))  # let the simulator's last metrics arrive
         finally:
             stop_child(sim)
@@ -217,11 +219,13 @@ def _cmd_demo(a) -> int:
     ticks = np.asarray(node.stats.tick_times) * 1e3
     out = {"world": world.name, "task": summary["task"], "completed": summary["completed"],
            "interrupted": stopped.is_set(), "state": summary["state"], "visited": summary["visited"],
-           "sim_time": m.get("time"), "wall_time": time.monotonic() - wall0, "distance": m.get("distance"),
+           "sim_time": m.get("time"), "wall_time": time.monotonic() - wall0, "sim_waited": m.get("waited"),
+           "distance": m.get("distance"),
            "collisions": len(m.get("collisions", [])) if isinstance(m.get("collisions"), list) else m.get("collisions"),
            "min_clearance": m.get("min_clearance"), "replans": summary["replans"],
            "planning_time": summary["planning_time"], "max_replan_time": summary["max_replan_time"],
            "obstacles": summary["obstacles"], "ticks": node.stats.ticks, "overruns": node.stats.overruns,
+           "refreshed": node.stats.refreshed,
            "tick_p50_ms": float(np.percentile(ticks, 50)) if len(ticks) else None,
            "tick_p95_ms": float(np.percentile(ticks, 95)) if len(ticks) else None,
            "warnings": node.stats.warnings, "record": a.record}
@@ -242,13 +246,15 @@ def _cmd_demo(a) -> int:
               f"  completed      {out['completed']}{' (interrupted)' if out['interrupted'] else ''} "
               f"(state {out['state']})\n"
               f"  visited        {' '.join(out['visited']) or '-'}\n"
-              f"  simulated time {f(out['sim_time'], '.1f')} s in {out['wall_time']:.1f} s wall\n"
+              f"  simulated time {f(out['sim_time'], '.1f')} s in {out['wall_time']:.1f} s wall "
+              f"({f(out['sim_waited'], 'd')} steps waited for the service)\n"
               f"  distance       {f(out['distance'], '.2f')} m, collisions {f(out['collisions'], 'd')}, "
               f"min clearance {f(out['min_clearance'], '.3f')} m\n"
               f"  planning       {out['replans']} re-plans, {out['planning_time']:.3f} s total, "
               f"max re-plan {out['max_replan_time'] * 1e3:.1f} ms\n"
               f"  control loop   {out['ticks']} ticks, p50 {f(out['tick_p50_ms'], '.1f')} ms, "
-              f"p95 {f(out['tick_p95_ms'], '.1f')} ms, {out['overruns']} overruns, {out['warnings']} input warnings"
+              f"p95 {f(out['tick_p95_ms'], '.1f')} ms, {out['overruns']} overruns, "
+              f"{out['refreshed']} commands refreshed, {out['warnings']} input warnings"
               + (f"\n  recording      {out['record']}" if out["record"] else "")
               + (f"\n  rerun logging  p50 {f(out['telemetry']['tick_p50_ms'], '.2f')} ms, "
                  f"p95 {f(out['telemetry']['tick_p95_ms'], '.2f')} ms per tick; "

@@ -14,6 +14,20 @@ the robot stops, as a real base's own command watchdog does. The controller's sp
 than the horizon: a service that falls behind (slow ticks, a sped-up simulation) makes the robot
 wait instead of driving on a stale command.
 
+Pacing (``SimNodeConfig.pace``, default on, only with ``speed > 1``): a sped-up simulation
+must not outrun the service it tests. After publishing a step's pose the node waits for a
+``cmd_vel`` answering it (one with ``pose_stamp`` at least that pose's stamp, or without
+``pose_stamp``, received after the pose went out) until the next step is due; when the service
+is slower than that, the node waits on for the answer up to ``dt`` wall seconds after the step
+started (real time), then steps anyway. ``speed`` is therefore an upper bound: a service that
+keeps up runs at ``speed``, one that falls behind slows the simulation down, never below real
+time. Without it, a loaded machine at ``--speed 4`` let the robot drive on commands computed for
+poses one or two steps old, and on maps that had not yet taken the latest scans (the
+controller's certificate holds for the pose and obstacles it was given): the office demo then
+touched obstacles in some runs (260 and 2157 blocked steps in 2 of 6 runs at speeds 4 and 6,
+with load average 5-7; docs/service.md). ``waited`` (also in the metrics message) counts the steps that waited
+past their schedule.
+
 Command line (used by the demo)::
 
     python -m service.sim_node --world simple --connect tcp/127.0.0.1:7447 [--speed 1] [--seed 0]
@@ -24,6 +38,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import math
 import signal
 import sys
 import threading
@@ -54,6 +69,7 @@ class SimNodeConfig:
     points: bool = False
     cmd_timeout: float = 0.1
     metrics_period: float = 1.0
+    pace: bool = True
     listen: tuple[str, ...] | None = ()
     connect: tuple[str, ...] | None = None
     zenoh_config: str | None = None
@@ -81,6 +97,9 @@ class SimNode:
         self._own = session is None
         self._session = session
         self._cmd: deque = deque(maxlen=1)
+        self._answered = threading.Event()  # a cmd_vel for the last published pose arrived
+        self._pose_stamp = -math.inf  # stamp of the last published pose
+        self.waited = 0  # steps that waited past their schedule for the service (pacing)
         self._stop = threading.Event()
         self._last_cmd_t: float | None = None  # simulated time the current command was applied
         self.bad_commands = 0
@@ -92,8 +111,7 @@ class SimNode:
         if self._session is None:
             self._session = zenoh.open(zenoh_config(listen=c.listen, connect=c.connect, config_file=c.zenoh_config))
         s = self._session
-        self._sub = s.declare_subscriber(c.key("cmd_vel"),
-                                         lambda sample: self._cmd.append((sample.payload.to_bytes(), time.monotonic())))
+        self._sub = s.declare_subscriber(c.key("cmd_vel"), self._on_cmd)
         self._pub_pose = s.declare_publisher(c.key("pose"), encoding=_JSON)
         self._pub_scan = s.declare_publisher(c.key("points" if c.points else "scan"), encoding=_JSON)
         self._pub_metrics = s.declare_publisher(c.key("sim/metrics"), encoding=_JSON)
@@ -108,12 +126,23 @@ class SimNode:
         if self._own:
             self._session.close()
 
+    def _on_cmd(self, sample) -> None:  # Zenoh thread: enqueue, and note an answer (pacing)
+        payload = sample.payload.to_bytes()
+        self._cmd.append((payload, time.monotonic()))
+        try:
+            stamp = json.loads(payload).get("pose_stamp")
+        except Exception:
+            return  # malformed: step() drops it
+        if stamp is None or (isinstance(stamp, (int, float)) and stamp >= self._pose_stamp - 1e-9):
+            self._answered.set()
+
     def stop(self) -> None:
         self._stop.set()
+        self._answered.set()
 
     def metrics(self) -> dict:
         m = self.sim.metrics.to_dict()
-        m.update(pose=list(self.sim.pose), bad_commands=self.bad_commands)
+        m.update(pose=list(self.sim.pose), bad_commands=self.bad_commands, waited=self.waited)
         return m
 
     def step(self) -> None:
@@ -131,6 +160,8 @@ class SimNode:
             sim.set_command(0.0, 0.0)
             self._last_cmd_t = None
         sim.step()
+        self._answered.clear()
+        self._pose_stamp = sim.time
         self._pub_pose.put(encode(sim.pose_message()))
         if sim.metrics.steps % self._scan_every == 0:
             msg = sim.points_message() if self.config.points else sim.scan_message()
@@ -142,7 +173,9 @@ class SimNode:
         nxt = time.monotonic()
         last_metrics = -1e9
         t_end = None if duration is None else self.sim.time + duration
+        pace = self.config.pace and self.config.speed > 1.0
         while not self._stop.is_set() and (t_end is None or self.sim.time < t_end - 1e-9):
+            started = time.monotonic()
             self.step()
             now = time.monotonic()
             if now - last_metrics >= self.config.metrics_period:
@@ -152,6 +185,11 @@ class SimNode:
             if nxt < now:
                 nxt = now
             self._stop.wait(nxt - now)
+            if pace and not self._answered.is_set():
+                # the service has not answered this pose yet: wait, at most until real time
+                self._answered.wait(max(0.0, started + self.sim.dt - time.monotonic()))
+                self.waited += 1
+                nxt = max(nxt, time.monotonic())
         self._pub_metrics.put(encode(self.metrics()))
 
 

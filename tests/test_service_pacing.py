@@ -1,0 +1,110 @@
+"""Commands for stale poses (issue 7): the node recomputes a slow tick's command on the newest
+pose (``NodeConfig.refresh``), and a sped-up simulator waits for the service's answer to each
+pose (``SimNodeConfig.pace``). No bus: the nodes' inboxes and publishers are driven directly."""
+
+from __future__ import annotations
+
+import json
+import time
+
+import pytest
+
+from service.brain import BrainTick
+from service.messages import encode
+from service.node import NodeConfig, ServiceNode
+from service.sim import Simulator
+from service.sim_node import SimNode, SimNodeConfig
+
+from .conftest import shared_world
+
+
+class _Recorder:
+    """Stands in for a publisher or the node's outputs: keeps what was put."""
+
+    def __init__(self):
+        self.out = []
+
+    def put(self, payload):
+        self.out.append(json.loads(payload))
+
+
+class _SlowBrain:
+    """A brain whose tick with a scan lets the robot move on meanwhile: a newer pose arrives in
+    the node's inbox during that tick. The command is the pose's x, to see which pose it used."""
+
+    def __init__(self, node, newer: bytes):
+        self.node, self.newer, self.calls = node, newer, []
+
+    def tick(self, pose, *, scan=None, scan_pose=None, points=None, now):
+        self.calls.append((pose.stamp, scan is not None))
+        if scan is not None and self.newer is not None:
+            self.node._inbox["pose"].append((self.newer, time.monotonic()))
+        return BrainTick(v=0.1, omega=pose.x, status={"state": "executing", "task": None, "plan": None,
+                                                      "target": None, "waypoint": None, "obstacles": 0,
+                                                      "message": ""})
+
+    def status(self):
+        return {}
+
+    def obstacles(self):
+        return []
+
+
+def _node(refresh: bool):
+    sim = Simulator(shared_world("simple"), seed=0)
+    node = ServiceNode(None, NodeConfig(refresh=refresh))
+    cmds = []
+    node._publish_cmd = lambda v, w, **extra: cmds.append((v, w, extra))
+    node._publish_status = lambda st, force=False: None
+    node._publish_obstacles = lambda: None
+    node._t0 = time.monotonic()
+    node._inbox["pose"].append((encode(sim.pose_message()), node._t0))
+    node._inbox["scan"].append((encode(sim.scan_message()), node._t0))
+    x0 = sim.pose[0]
+    sim.step((0.5, 0.0))
+    newer = encode(sim.pose_message())
+    node.brain = _SlowBrain(node, newer)
+    return node, sim, cmds, x0
+
+
+@pytest.mark.parametrize("refresh", [True, False])
+def test_a_slow_ticks_command_is_recomputed_on_the_newest_pose(refresh):
+    node, sim, cmds, x0 = _node(refresh)
+    node.step()
+    (v, w, extra), = cmds
+    x1 = sim.pose[0]
+    if refresh:
+        # ticked again without the scan, on the pose that arrived meanwhile; that command is sent
+        assert node.brain.calls == [(0.0, True), (sim.time, False)]
+        assert extra["pose_stamp"] == sim.time and w == pytest.approx(x1) and node.stats.refreshed == 1
+    else:
+        assert node.brain.calls == [(0.0, True)]
+        assert extra["pose_stamp"] == 0.0 and w == pytest.approx(x0) and node.stats.refreshed == 0
+    assert x0 != x1
+
+
+def _sim_node(pace: bool, answer: bool) -> SimNode:
+    node = SimNode(Simulator(shared_world("simple"), seed=0), SimNodeConfig(speed=50.0, pace=pace))
+    node._pub_scan, node._pub_metrics = _Recorder(), _Recorder()
+
+    class _Pose(_Recorder):
+        def put(self, payload):
+            super().put(payload)
+            if answer:  # a service that answers every pose at once
+                stamp = json.loads(payload)["stamp"]
+                node._on_cmd(type("S", (), {"payload": type("P", (), {"to_bytes": lambda self: json.dumps(
+                    {"stamp": 0.0, "v": 0.0, "omega": 0.0, "pose_stamp": stamp}).encode()})()})())
+
+    node._pub_pose = _Pose()
+    return node
+
+
+@pytest.mark.parametrize("pace, answer, waits", [(True, False, 5), (True, True, 0), (False, False, 0)])
+def test_a_paced_simulator_waits_for_the_answer_to_each_pose(pace, answer, waits):
+    """Five steps at speed 50 without answers wait past their schedule each time (real-time
+    pace at worst); answered at once, or without pacing, none waits."""
+    node = _sim_node(pace, answer)
+    node.run(duration=0.5)
+    assert node.sim.time == pytest.approx(0.5)
+    assert node.waited == waits
+    assert node.metrics()["waited"] == waits
