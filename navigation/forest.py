@@ -86,7 +86,8 @@ from .geometry import (COS, CX, CY, HH, HW, S, SIN, Squircle, beta_gradient_rows
                        clear_geometry_cache, pack, point_at_rows, ray_length_packed,
                        signed_distance_rows)
 
-__all__ = ["WORKSPACE", "NO_PARENT", "Forest", "build_forest", "separation", "common_center", "clear_cache"]
+__all__ = ["WORKSPACE", "NO_PARENT", "Forest", "build_forest", "check_forest", "separation", "common_center",
+           "clear_cache"]
 
 #: ``Forest.parent`` value of an obstacle whose parent is the workspace boundary.
 WORKSPACE = -1
@@ -1271,6 +1272,24 @@ def build_forest(workspace: Squircle, obstacles: Sequence[Squircle], *, min_gap:
     >>> f.parent, f.depth, f.levels()
     ((-2, 0), (0, 1), [(1,)])
     """
+    return _build(workspace, obstacles, min_gap, min_overlap, full=True)
+
+
+def check_forest(workspace: Squircle, obstacles: Sequence[Squircle], *, min_gap: float = 1e-3,
+                 min_overlap: float = 1e-3) -> None:
+    """Raise the :class:`~navigation.errors.ForestError` (or ``TypeError``) that
+    :func:`build_forest` would raise for these arguments, else return ``None``.
+
+    Runs the same tests in the same order, and stops before the terms only the navigation
+    function needs (:attr:`Forest.far_gap`, :attr:`Forest.clearance`), which cannot refuse a
+    configuration; for a map that only needs to know whether the forest construction accepts it
+    (perception's forest check). What it computes is memoised as by :func:`build_forest`.
+    """
+    _build(workspace, obstacles, min_gap, min_overlap, full=False)
+
+
+def _build(workspace, obstacles, min_gap, min_overlap, *, full: bool) -> Forest | None:
+    """:func:`build_forest` (``full``) or :func:`check_forest`."""
     if not isinstance(workspace, Squircle):
         raise TypeError(f"workspace must be a Squircle, got {type(workspace).__name__}")
     obstacles = tuple(obstacles)
@@ -1453,6 +1472,8 @@ def build_forest(workspace: Squircle, obstacles: Sequence[Squircle], *, min_gap:
                           f"{max(cdepth[i], 0.0):.3g} m deep, less than min_overlap = {min_overlap:g} m): "
                           f"separate them or make them overlap more", obstacles=(keep[i], other),
                           rule="shallow-overlap")
+    if not full:
+        return None
 
     far = np.full(m, np.inf)
     ws_kids = [i for i in nonroot if parent[i] == WORKSPACE]

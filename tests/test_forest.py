@@ -682,3 +682,35 @@ class TestMemo:
         assert m.get(2) == 20
         m.put(5, 50)  # evicts 3, the least recently used
         assert m.get(3) is None and m.get(2) == 20 and m.get(5) == 50
+
+
+def test_check_forest_refuses_exactly_what_build_forest_refuses():
+    """``check_forest`` stops before the far gaps and clearances: on random obstacle sets (many
+    refused: cycles, near misses, grazing overlaps, obstacles covering or crossing the boundary
+    twice) it raises the same rule for the same obstacles, and accepts what is accepted."""
+    from navigation.errors import ForestError
+    from navigation.forest import check_forest, clear_cache
+
+    rng = np.random.default_rng(11)
+    ws = Squircle((2.5, 2.5), 5.0, 5.0, 0.0, 0.95)
+    a = Squircle((2.0, 2.0), 1.0, 0.4, 0.0, 0.9)
+    crafted = [[a, Squircle((2.0, 2.4004), 1.0, 0.4, 0.0, 0.9)],  # 0.4 mm apart: too close
+               [a, Squircle((2.0, 2.3998), 1.0, 0.4, 0.0, 0.9)],  # 0.2 mm deep: grazing
+               [Squircle((2.5, 2.5), 6.0, 6.0, 0.0, 0.9)]]  # covers the workspace
+    sets = crafted + [[Squircle(tuple(rng.uniform(0.0, 5.0, 2)), rng.uniform(0.2, 2.0), rng.uniform(0.1, 0.6),
+                                rng.uniform(-np.pi, np.pi), rng.choice([0.0, 0.9, 0.99]))
+                       for _ in range(rng.integers(2, 8))] for _ in range(80)]
+    seen = set()
+    for trial, obs in enumerate(sets):
+        outcome = []
+        for fn in (build_forest, check_forest):
+            if trial % 2:
+                clear_cache()
+            try:
+                fn(ws, obs)
+                outcome.append(None)
+            except ForestError as err:
+                outcome.append((err.rule, tuple(err.obstacles)))
+        assert outcome[0] == outcome[1], (trial, outcome)
+        seen.add(None if outcome[0] is None else outcome[0][0])
+    assert {None, "cycle", "too-close", "shallow-overlap", "covers-workspace"} <= seen, seen
