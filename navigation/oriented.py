@@ -77,6 +77,10 @@ points out of it. ``Upsilon`` (``field``, ``jacobian``, ``angle``) is unchanged;
 :func:`navigation.control.track` uses the push-forward direction only with
 ``ControllerConfig(push_forward=True)``.
 
+:meth:`OrientedField.boundary_frame` (first-order distances and normals of the grown boundaries
+near a point, exact gradients) and :attr:`OrientedField.goal_clearance` serve the controller's
+opt-in stand-off (:mod:`navigation.control`); they are not part of the field.
+
 Degenerate points: the goal itself (``|q - q_G| < GOAL_TOLERANCE``) and critical points
 (``|grad phi_O| < GRADIENT_FLOOR``) are flagged ``degenerate``: field 0, direction ``theta_G``
 (goal) or 0, zero derivatives. Outside free space the navigation function's outside contract
@@ -88,6 +92,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
+from typing import NamedTuple
 
 import numpy as np
 
@@ -95,8 +100,9 @@ from ._arrays import as_points, restore
 from ._jet import Jet, logistic
 from .clearance import forest_clearance
 from .errors import NavigationError, OutsideFreeSpaceError
+from .geometry import _beta_derivatives, pack
 
-__all__ = ["OrientedField", "OrientedEval", "wrap_angle", "DIPOLE_FRACTION", "GRADIENT_FLOOR",
+__all__ = ["OrientedField", "OrientedEval", "BoundaryFrame", "wrap_angle", "DIPOLE_FRACTION", "GRADIENT_FLOOR",
            "GOAL_TOLERANCE"]
 
 DIPOLE_FRACTION = 0.3
@@ -148,6 +154,32 @@ class OrientedEval:
     degenerate: np.ndarray
     flow_angle: np.ndarray
     flow_gradient: np.ndarray
+
+
+class BoundaryFrame(NamedTuple):
+    """Grown boundaries near a point (:meth:`OrientedField.boundary_frame`); every gradient exact.
+
+    Attributes
+    ----------
+    weight, weight_gradient : float, (2,)
+        Band weight ``1 - prod_i (1 - w_i)``, ``w_i = smoothstep(2 (reach - delta_i) / reach)``
+        (1 within ``reach / 2`` of a boundary, 0 beyond ``reach`` of all).
+    angle, angle_gradient : float, (2,)
+        Direction of the weighted normal ``sum_i w_i nu_i`` (into free space).
+    distance, distance_gradient : float, (2,)
+        ``delta`` of the nearest boundary (first-order distance).
+    normal, normal_jacobian : (2,), (2, 2)
+        Unit normal ``nu`` of the nearest boundary and ``d nu / d q``.
+    """
+
+    weight: float
+    weight_gradient: np.ndarray
+    angle: float
+    angle_gradient: np.ndarray
+    distance: float
+    distance_gradient: np.ndarray
+    normal: np.ndarray
+    normal_jacobian: np.ndarray
 
 
 class OrientedField:
@@ -229,6 +261,78 @@ class OrientedField:
         pts, single = as_points(q, "q")
         ev = self._evaluate(pts)
         return restore(ev.angle, single), restore(ev.angle_gradient, single)
+
+    @property
+    def goal_clearance(self) -> float:
+        """Exact clearance of the goal (distance to the nearest grown obstacle or the workspace
+        boundary), computed once."""
+        c = getattr(self, "_goal_clearance", None)
+        if c is None:
+            c = self._goal_clearance = float(self.clearance.exact(self.goal))
+        return c
+
+    def boundary_frame(self, q, reach: float) -> "BoundaryFrame | None":
+        """Boundaries of the field's forest within ``reach`` of one point ``q (2,)`` (see
+        :class:`BoundaryFrame`), or ``None`` when none is that close, ``q`` is not in free space,
+        or the weighted normals cancel. Not part of the oriented field; used by the
+        controller's stand-off (:mod:`navigation.control`).
+
+        For every obstacle of the forest (grown by the inflation) and the workspace boundary,
+        ``delta_i = sigma_i beta_i / |grad beta_i|`` is the first-order (one Newton step)
+        distance to its boundary (``sigma = +1`` for obstacles, ``-1`` for the workspace) and
+        ``nu_i = sigma_i grad beta_i / |grad beta_i|`` the unit normal into free space; all
+        derivatives are exact (Hessians of ``beta``)."""
+        q = np.asarray(q, dtype=float).reshape(2)
+        reach = float(reach)
+        if not (math.isfinite(reach) and reach > 0):
+            return None
+        rows = getattr(self, "_boundary_rows", None)
+        if rows is None:
+            forest = self.nf.forest
+            rows = pack(tuple(forest.obstacles) + (forest.workspace,))
+            sign = np.ones(len(rows))
+            sign[-1] = -1.0
+            self._boundary_rows = rows = (rows, sign)
+        P, sign = rows
+        with np.errstate(all="ignore"):
+            b, bx, by, bxx, bxy, byy = _beta_derivatives(P, q[0], q[1])
+            L2 = bx * bx + by * by
+            L = np.sqrt(L2)
+            delta = sign * b / L
+        near = (np.isfinite(delta) & np.isfinite(bxx) & np.isfinite(bxy) & np.isfinite(byy) & (L2 > 0)
+                & (delta < reach))
+        if (sign * b <= 0).any() or not near.any():
+            return None  # on or inside an obstacle / outside the workspace, or far from every boundary
+        b, bx, by, bxx, bxy, byy, L, L2, delta, sg = (a[near] for a in (b, bx, by, bxx, bxy, byy, L, L2,
+                                                                       delta, sign))
+        g = np.stack([bx, by], 1)  # (k, 2)
+        H = np.stack([np.stack([bxx, bxy], 1), np.stack([bxy, byy], 1)], 1)  # (k, 2, 2)
+        Hg = np.einsum("kij,kj->ki", H, g)
+        grad_delta = sg[:, None] * (g / L[:, None] - b[:, None] * Hg / (L2 * L)[:, None])
+        nu = sg[:, None] * g / L[:, None]
+        ghat = g / L[:, None]
+        proj = np.eye(2)[None] - ghat[:, :, None] * ghat[:, None, :]
+        dnu = sg[:, None, None] * (proj @ H) / L[:, None, None]  # d nu_i / d q_j
+        t = np.clip(2.0 * (reach - delta) / reach, 0.0, 1.0)
+        w = t * t * (3.0 - 2.0 * t)
+        dw = (6.0 * t * (1.0 - t) * (-2.0 / reach))[:, None] * grad_delta
+        one = 1.0 - w
+        weight = 1.0 - float(np.prod(one))
+        grad_weight = np.zeros(2)
+        for i in range(len(w)):
+            grad_weight += dw[i] * float(np.prod(np.delete(one, i)))
+        N = (w[:, None] * nu).sum(0)
+        dN = (nu[:, :, None] * dw[:, None, :] + w[:, None, None] * dnu).sum(0)
+        n2 = float(N @ N)
+        if not n2 > 1e-12:
+            return None
+        angle = math.atan2(N[1], N[0])
+        angle_gradient = (N[0] * dN[1] - N[1] * dN[0]) / n2
+        i = int(np.argmin(delta))
+        out = BoundaryFrame(weight, grad_weight, angle, angle_gradient, float(delta[i]), grad_delta[i],
+                            nu[i], dnu[i])
+        finite = all(np.isfinite(np.asarray(v, dtype=float)).all() for v in out)
+        return out if finite else None  # pragma: no cover (finite)
 
     def evaluate(self, q) -> OrientedEval:
         """Everything at once (see :class:`OrientedEval`); unbatched for ``(2,)`` input."""

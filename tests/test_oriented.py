@@ -123,3 +123,40 @@ def test_shapes_follow_the_input():
     assert f.field(np.zeros((0, 2))).shape == (0, 2)
     ev = f.evaluate([1.0, 1.0])
     assert ev.degenerate and ev.angle == pytest.approx(0.3)
+
+
+@pytest.mark.parametrize("name", ["simple", "office", "random4"])
+def test_boundary_frame_derivatives_match_finite_differences(name):
+    """``OrientedField.boundary_frame`` (the controller's stand-off): band weight, weighted
+    normal, nearest first-order distance and normal, each with its exact gradient."""
+    from .worldgen import random_forest_world
+
+    world = random_forest_world(4, gap=0.3) if name == "random4" else shared_world(name)
+    r = world.robot.radius
+    rng = np.random.default_rng(2)
+    goal = random_free_points(world, 1, rng, margin=r + 0.2)[0]
+    field = OrientedField(navigation.NavigationFunction(world, goal=goal, inflation=r), heading=0.3)
+    reach, h, checked = 0.06, 1e-7, 0
+    for q in random_free_points(world, 1500, rng, margin=r + 0.001):
+        fr = field.boundary_frame(q, reach)
+        if fr is None:
+            assert float(field.clearance(q, reach)) >= reach - 0.02 or not field.evaluate(q).free
+            continue
+        assert 0.0 < fr.weight <= 1.0 and abs(np.linalg.norm(fr.normal) - 1.0) < 1e-12
+        checked += 1
+        for k, e in enumerate(np.eye(2) * h):
+            p, m = field.boundary_frame(q + e, reach), field.boundary_frame(q - e, reach)
+            if p is None or m is None:
+                continue
+            pairs = [((p.weight - m.weight) / (2 * h), fr.weight_gradient[k]),
+                     (wrap_angle(p.angle - m.angle) / (2 * h), fr.angle_gradient[k]),
+                     ((p.normal - m.normal) / (2 * h), fr.normal_jacobian[:, k])]
+            if np.allclose(p.normal, m.normal, atol=1e-5):  # same nearest boundary on both sides
+                pairs.append(((p.distance - m.distance) / (2 * h), fr.distance_gradient[k]))
+            for fd, exact in pairs:
+                assert np.allclose(fd, exact, rtol=1e-4, atol=1e-4 * (1 + np.abs(exact).max())), (q, k, fd, exact)
+    assert checked >= 30
+    # far from every boundary, and inside an obstacle: no frame
+    assert field.boundary_frame(field.goal, 0.1) is None
+    assert field.boundary_frame(field.nf.forest.obstacles[0].center, reach) is None
+    assert field.goal_clearance == pytest.approx(field.clearance.exact(field.goal))
