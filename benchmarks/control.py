@@ -3,7 +3,7 @@
 Run from the repository root::
 
     python -m benchmarks.control [--quick] [--out benchmarks/results] [--starts 10] [--goals 2] [--random 5] [--jobs 1]
-                                 [--push-forward]
+                                 [--push-forward] [--standoff D]
 
 For each world (``simple``, ``office`` with all obstacles known, and random forest worlds from
 ``tests.worldgen`` with ``gap=0.3`` so that they stay forests in the robot's configuration
@@ -19,7 +19,8 @@ integrated absolute curvature ``sum |omega| dt`` over moving steps (rad), and th
 suite's chatter (:func:`benchmarks.methods.chatter`: sign flips of the executed turn rate between
 consecutive periods, both above 0.05 rad/s, per metre; a run is *flagged* above 1/m) with the
 count of flagged runs. ``--push-forward`` runs the controller with
-``ControllerConfig(push_forward=True)`` (docs/control.md). Also the median
+``ControllerConfig(push_forward=True)`` and ``--standoff D`` with ``ControllerConfig(standoff=D)``
+(``--standoff 0``: the controller without the stand-off; docs/control.md). Also the median
 time of one controller step (field, Jacobian, command) with its target <= 2 ms.
 Results: ``<out>/control.json`` and ``<out>/control.md`` (also printed); progress on stderr.
 """
@@ -86,11 +87,13 @@ def _worlds(n_random: int):
 
 
 def _world_row(job) -> dict:
-    """Closed-loop runs of one world: ``job = (name, world, starts, goals, push_forward)``."""
-    name, world, starts, goals, push_forward = job
+    """Closed-loop runs of one world: ``job = (name, world, starts, goals, push_forward, standoff)``
+    (``standoff=None``: the :class:`ControllerConfig` default)."""
+    name, world, starts, goals, push_forward, standoff = job
     rng = np.random.default_rng(0)
     r = world.robot.radius
-    cfg = ControllerConfig.from_robot(world.robot, push_forward=push_forward)
+    extra = {} if standoff is None else {"standoff": standoff}
+    cfg = ControllerConfig.from_robot(world.robot, push_forward=push_forward, **extra)
     eps, times = [], []
     for g in range(goals):
         goal = random_free_points(world, 1, rng, margin=r + 0.2)[0]
@@ -136,10 +139,10 @@ def _total(rows: list[dict]) -> dict:
 
 
 def run(*, quick: bool = False, starts: int = 10, goals: int = 2, n_random: int = 5, jobs: int = 1,
-        push_forward: bool = False) -> dict:
+        push_forward: bool = False, standoff: float | None = None) -> dict:
     if quick:
         starts, goals, n_random = 2, 1, 0
-    work = [(name, world, starts, goals, push_forward) for name, world in _worlds(n_random)
+    work = [(name, world, starts, goals, push_forward, standoff) for name, world in _worlds(n_random)
             if not quick or name == "simple"]
     if jobs > 1:
         from concurrent.futures import ProcessPoolExecutor
@@ -149,7 +152,8 @@ def run(*, quick: bool = False, starts: int = 10, goals: int = 2, n_random: int 
         rows = [_world_row(job) for job in work]
     rows.append(_total(rows))
     return {"benchmark": "control", "quick": quick,
-            "settings": {"starts": starts, "goals": goals, "random": n_random, "push_forward": push_forward},
+            "settings": {"starts": starts, "goals": goals, "random": n_random, "push_forward": push_forward,
+                         "standoff": ControllerConfig().standoff if standoff is None else standoff},
             "tolerances": {"position": POS_TOL, "heading": HEADING_TOL, "max_time": MAX_TIME},
             "step_target": STEP_TARGET, "worlds": rows,
             "machine": machine_info()}
@@ -163,7 +167,8 @@ def render_markdown(result: dict) -> str:
     st = result["settings"]
     cmd = ("python -m benchmarks.control" + (" --quick" if result["quick"] else
                                              f" --starts {st['starts']} --goals {st['goals']} --random {st['random']}")
-           + (" --push-forward" if st.get("push_forward") else ""))
+           + (" --push-forward" if st.get("push_forward") else "")
+           + (f" --standoff {st['standoff']:g}" if st.get("standoff") is not None else ""))
     lines = ["# Closed-loop controller benchmark", "",
              f"`{cmd}` "
              f"(Python {result['machine']['python']}, {result['machine']['cpus']} CPUs). Goal pose reached: "
@@ -192,11 +197,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--jobs", type=int, default=1, help="worker processes (one world per task)")
     parser.add_argument("--push-forward", action="store_true",
                         help="track the push-forward direction (ControllerConfig(push_forward=True))")
+    parser.add_argument("--standoff", type=float, default=None,
+                        help="ControllerConfig.standoff in m (0 turns the stand-off off; default: the config's)")
     args = parser.parse_args(argv)
     if args.starts < 1 or args.goals < 1 or args.random < 0 or args.jobs < 1:
         parser.error("--starts, --goals and --jobs must be >= 1 and --random >= 0")
     result = run(quick=args.quick, starts=args.starts, goals=args.goals, n_random=args.random, jobs=args.jobs,
-                 push_forward=args.push_forward)
+                 push_forward=args.push_forward, standoff=args.standoff)
     write_results(args.out, "control", result, render_markdown(result))
     return 0
 
