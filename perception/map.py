@@ -26,7 +26,9 @@ The map starts knowing only the workspace and grows from scans:
    nor reaches into a region disc; an estimate that cannot be trimmed is removed, logged.
 6. **Forest check**: the inflated estimates (grown by the robot radius with
    :func:`perception.fit.inflate`) with the workspace shrunk by the radius must be accepted by
-   :func:`navigation.build_forest`. The check runs on the changed estimates and everything
+   :func:`navigation.build_forest` (checked with :func:`navigation.forest.check_forest`, which
+   raises what it would without computing the terms only navigation needs). The check runs on
+   the changed estimates and everything
    near them (bounding circles within ``min_gap``), which is equivalent to checking the whole
    map because the untouched part was accepted before. A :class:`~navigation.ForestError` is
    repaired conservatively: a too-close or shallow pair is grown by 3 cm per try (the smaller
@@ -50,7 +52,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from navigation.errors import ForestError
-from navigation.forest import Forest, build_forest
+from navigation.forest import Forest, build_forest, check_forest
 from navigation.geometry import Squircle
 
 from .config import PerceptionConfig
@@ -277,7 +279,7 @@ class ObstacleMap:
         self.last_pose: tuple[float, float, float] | None = None
         self.scans = 0
         #: counters: refit triggers (``refit_new``, ``refit_merged``, ``refit_grown``,
-        #: ``refit_free``), ``forest_checks`` (calls of build_forest), ``repairs``,
+        #: ``refit_free``), ``forest_checks`` (calls of check_forest), ``repairs``,
         #: ``reverts``, ``recovered`` (returns a region trim left uncovered, fitted again)
         self.stats: Counter = Counter()
 
@@ -935,7 +937,7 @@ class ObstacleMap:
                 return None, sub
         self.stats["forest_checks"] += 1
         try:
-            build_forest(self.cspace_workspace, [proposed[i].inflated for i in sub], min_gap=cfg.min_gap,
+            check_forest(self.cspace_workspace, [proposed[i].inflated for i in sub], min_gap=cfg.min_gap,
                          min_overlap=cfg.min_overlap)
         except ForestError as err:
             return err, sub
