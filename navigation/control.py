@@ -252,8 +252,7 @@ def _direction(q: np.ndarray, field: OrientedField, cfg: ControllerConfig):
         else:
             # smoothstep weight of the gradient direction; the clearance bound has no exact
             # gradient, so the weight is treated as locally constant in the feed-forward
-            t = 1.0 - c / delta
-            out = _unit_blend(tf, gf, tg, grad, t * t * (3.0 - 2.0 * t), np.zeros(2))
+            out = _unit_blend(tf, gf, tg, grad, _smoothstep(1.0 - c / delta)[0], np.zeros(2))
             if out is not None:
                 tg, grad = out
     if cfg.standoff > 0 and bool(ev.free) and not bool(ev.degenerate):

@@ -857,8 +857,8 @@ class Executive:
         ratio = self.config.detour_ratio
         direct = math.dist(start[:2], goal[:2])
         for roads in self._roads:
-            if best is not None and not best.translations.sum() > ratio * direct:
-                break  # no tree can be detour_ratio times shorter than the straight line
+            if best is not None and (ratio <= 0 or not best.translations.sum() > ratio * direct):
+                break  # no detours considered, or none can be ratio times shorter than the straight line
             try:
                 self.trees_planned += 1
                 tree = plan_tree(roads.current(), start, goal, self.weights, self.config.n_headings)
@@ -870,8 +870,6 @@ class Executive:
                 continue
             if best is None or ratio * tree.translations.sum() < best.translations.sum():
                 best = tree
-            if ratio <= 0:
-                break
         return best if best is not None else err
 
     def _center_pose(self, a, b):
