@@ -48,6 +48,8 @@ from dataclasses import dataclass
 
 import zenoh
 
+from perception.ingest import decode_object
+
 from .errors import ServiceError
 from .messages import encode
 from .node import zenoh_config
@@ -128,11 +130,13 @@ class SimNode:
 
     def _on_cmd(self, sample) -> None:  # Zenoh thread: enqueue, and note an answer (pacing)
         payload = sample.payload.to_bytes()
-        self._cmd.append((payload, time.monotonic()))
-        try:
-            stamp = json.loads(payload).get("pose_stamp")
+        try:  # decoded once, here; step() validates the fields
+            message = decode_object(payload, ValueError)
         except Exception:
-            return  # malformed: step() drops it
+            self._cmd.append((payload, time.monotonic()))
+            return  # malformed: step() drops it with the decoder's reason
+        self._cmd.append((message, time.monotonic()))
+        stamp = message.get("pose_stamp")
         if stamp is None or (isinstance(stamp, (int, float)) and stamp >= self._pose_stamp - 1e-9):
             self._answered.set()
 

@@ -108,3 +108,25 @@ def test_a_paced_simulator_waits_for_the_answer_to_each_pose(pace, answer, waits
     assert node.sim.time == pytest.approx(0.5)
     assert node.waited == waits
     assert node.metrics()["waited"] == waits
+
+
+def _sample(payload: bytes):
+    return type("S", (), {"payload": type("P", (), {"to_bytes": lambda self: payload})()})()
+
+
+@pytest.mark.parametrize("payload, held, bad, answers", [
+    (json.dumps({"stamp": 0.0, "v": 0.2, "omega": -0.3, "pose_stamp": 0.0}).encode(), (0.2, -0.3), 0, True),
+    (b"\xff\xfe garbage", (0.0, 0.0), 1, False),
+    (b"{not json", (0.0, 0.0), 1, False),
+    (b"[1, 2]", (0.0, 0.0), 1, False),
+    # a JSON object answers the pose (pacing) even when its fields are then refused
+    (json.dumps({"stamp": 0.0, "v": float("nan"), "omega": 0.0}).encode(), (0.0, 0.0), 1, True),
+])
+def test_the_simulator_node_applies_a_decoded_cmd_vel_and_drops_a_malformed_one(payload, held, bad, answers):
+    """``_on_cmd`` decodes a payload once; ``step`` applies it, or drops and counts it."""
+    node = _sim_node(pace=False, answer=False)
+    node._on_cmd(_sample(payload))
+    assert node._answered.is_set() == answers
+    node.step()
+    assert node.bad_commands == bad
+    assert node.sim.command == pytest.approx(held)
