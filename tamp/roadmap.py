@@ -125,17 +125,23 @@ def grown(sq: Squircle, amount: float) -> Squircle:
 
 
 # ---------------------------------------------------------------------- exact segment tests
-def _line_beta(P: np.ndarray, a: np.ndarray, d: np.ndarray, t: np.ndarray):
-    """``beta`` of rows ``P (K, 7)`` at ``a + t d`` and its exact derivative in ``t``."""
+def _line_coeffs(P: np.ndarray, a: np.ndarray, d: np.ndarray):
+    """The lines ``a + t d`` in the normalised frames of rows ``P (K, 7)``: ``(x0, y0, dx, dy,
+    k)`` with the frame point ``(x0 + t dx, y0 + t dy)`` and ``k = 2 - 4 s^2`` (computed once
+    per (segment, squircle) pair; :func:`_line_beta` evaluates them at any ``t``)."""
     cx, cy, c, s = P[:, 0], P[:, 1], P[:, 2], P[:, 3]
     ex, ey = a[:, 0] - cx, a[:, 1] - cy
     x0 = (c * ex + s * ey) / P[:, 4]
     y0 = (-s * ex + c * ey) / P[:, 5]
     dx = (c * d[:, 0] + s * d[:, 1]) / P[:, 4]
     dy = (-s * d[:, 0] + c * d[:, 1]) / P[:, 5]
+    return x0, y0, dx, dy, 2.0 - 4.0 * P[:, 6] ** 2
+
+
+def _line_beta(x0, y0, dx, dy, k, t: np.ndarray):
+    """``beta`` at ``a + t d`` and its exact derivative in ``t``, from :func:`_line_coeffs`."""
     x, y = x0 + t * dx, y0 + t * dy
     x2, y2 = x * x, y * y
-    k = 2.0 - 4.0 * P[:, 6] ** 2
     root = np.sqrt(np.maximum(x2 * x2 + y2 * y2 + k * x2 * y2, 0.0))
     beta = 0.5 * (x2 + y2 + root) - 1.0
     droot_num = 4.0 * x2 * x * dx + 4.0 * y2 * y * dy + k * (2.0 * x * dx * y2 + 2.0 * x2 * y * dy)
@@ -160,20 +166,39 @@ def _blocked(P: np.ndarray, a: np.ndarray, b: np.ndarray, seg: np.ndarray, n: in
     K = len(P)
     if K == 0:
         return blocked
-    d = b - a
+    line = _line_coeffs(P, a, b - a)
+    # pairs whose segment misses the squircle's bounding rectangle (the square [-1, 1]^2 of the
+    # normalised frame, which contains the unit squircle) by a clear margin cannot block:
+    # separating-axis test on the frame's axes and the segment's normal
+    x0, y0, dx, dy, _ = line
+    x1, y1 = x0 + dx, y0 + dy
+    tol = 1.0 + 1e-9
+    sep = ((np.minimum(x0, x1) > tol) | (np.maximum(x0, x1) < -tol) | (np.minimum(y0, y1) > tol)
+           | (np.maximum(y0, y1) < -tol) | (np.abs(dy * x0 - dx * y0) > tol * (np.abs(dx) + np.abs(dy))))
+    if sep.any():
+        near = ~sep
+        P, seg = P[near], seg[near]
+        line = tuple(v[near] for v in line)
+        K = len(P)
+        if K == 0:
+            return blocked
     zero, one = np.zeros(K), np.ones(K)
-    f0, g0 = _line_beta(P, a, d, zero)
-    f1, g1 = _line_beta(P, a, d, one)
+    f0, g0 = _line_beta(*line, zero)
+    f1, g1 = _line_beta(*line, one)
     ends_out = (f0 > 0) & (f1 > 0)
     blocked[seg[~ends_out]] = True  # an end inside the squircle
     # otherwise the minimum is at an end (outside) unless g0 < 0 < g1
     act = np.nonzero(ends_out & (g0 < 0) & (g1 > 0))[0]
     act = act[~blocked[seg[act]]]
-    lo, hi = zero[act], one[act]
-    flo, glo, fhi, ghi = f0[act], g0[act], f1[act], g1[act]
+    # the bracket of every active pair, one row each: lo, hi, f(lo), f'(lo), f(hi), f'(hi);
+    # the active pairs' lines and segments are carried along and filtered with it
+    br = np.stack((zero[act], one[act], f0[act], g0[act], f1[act], g1[act]))
+    ln = np.stack([v[act] for v in line])
+    sg = seg[act]
     for _ in range(_BISECTION_STEPS):
-        if act.size == 0:
+        if sg.size == 0:
             break
+        lo, hi, flo, glo, fhi, ghi = br
         # the tangent lines at the bracket ends, flo + glo (t - lo) (falling) and
         # fhi + ghi (t - hi) (rising), cross at t* in [lo, hi]; the convex beta lies above both,
         # so their value there is a lower bound of beta on the bracket
@@ -185,20 +210,15 @@ def _blocked(P: np.ndarray, a: np.ndarray, b: np.ndarray, seg: np.ndarray, n: in
         # shrinks by at least a quarter per step
         width = hi - lo
         mid = np.minimum(np.maximum(lo - glo * width / denom, lo + 0.25 * width), hi - 0.25 * width)
-        fm, gm = _line_beta(P[act], a[act], d[act], mid)
+        fm, gm = _line_beta(*ln, mid)
         hit = ~ok & (fm <= 0)
-        blocked[seg[act[hit]]] = True
+        blocked[sg[hit]] = True
         keep = ~ok & ~hit
-        keep &= ~blocked[seg[act]]
-        left = gm < 0  # minimum right of mid
-        lo = np.where(left, mid, lo)
-        flo = np.where(left, fm, flo)
-        glo = np.where(left, gm, glo)
-        hi = np.where(left, hi, mid)
-        fhi = np.where(left, fhi, fm)
-        ghi = np.where(left, ghi, gm)
-        act, lo, hi, flo, glo, fhi, ghi = (v[keep] for v in (act, lo, hi, flo, glo, fhi, ghi))
-    blocked[seg[act]] = True  # undecided
+        keep &= ~blocked[sg]
+        left = gm < 0  # minimum right of mid: the bracket becomes [mid, hi], else [lo, mid]
+        br = np.where(left, np.stack((mid, hi, fm, gm, fhi, ghi)), np.stack((lo, mid, flo, glo, fm, gm)))
+        br, ln, sg = br[:, keep], ln[:, keep], sg[keep]
+    blocked[sg] = True  # undecided
     return blocked
 
 

@@ -398,3 +398,26 @@ def test_large_rounded_obstacles_get_enough_vertices_to_go_around():
     assert not rm.visible(np.array([start[:2]]), np.array([goal[:2]]))[0]
     tree = plan_tree(rm, start, goal)
     _check_tree(tree, rm, start, goal)
+
+
+@pytest.mark.parametrize("s", [0.0, 0.5, 0.99])
+def test_segment_test_near_the_bounding_rectangle(s):
+    """Segments grazing a face of the squircle's bounding rectangle (which the squircle touches
+    at the face's midpoint): 1e-7 m outside are clear, 1e-7 m inside are blocked, whatever the
+    rectangle pre-filter of the segment test decides for other pairs."""
+    theta = 0.7
+    sq = Squircle((0.3, -0.2), 1.6, 0.4, theta, s)
+    P = pack([sq])
+    ex = np.array([math.cos(theta), math.sin(theta)])
+    ey = np.array([-math.sin(theta), math.cos(theta)])
+    centre = np.array(sq.center)
+    out, inn = [], []
+    for off in (1e-7, -1e-7):
+        for side in (1.0, -1.0):
+            for half in (0.3, 2.0):  # a short segment across the midpoint, a long one past the ends
+                for mid, along in ((centre + side * (0.2 + off) * ey, ex), (centre + side * (0.8 + off) * ex, ey)):
+                    (out if off > 0 else inn).append((mid - half * along, mid + half * along))
+    a, b = (np.array(v) for v in zip(*out))
+    assert segments_clear(P, a, b).all()
+    a, b = (np.array(v) for v in zip(*inn))
+    assert not segments_clear(P, a, b).any()
