@@ -89,10 +89,11 @@ Choices where the paper is silent or loose, and why:
      weighted normal of the boundaries within ``D``), so the robot backs off to about ``D`` and
      follows the wall there, where the safety limit allows ``D / safety_horizon`` (0.3 m/s);
   3. *approach limit* on (24a): ``v max(0, -Theta . n) h <= max(0, delta - D / 3)`` (``h`` the
-     safety horizon; ``n`` as in 2 within ``D``, else ``nu``): one step does not take the robot
-     closer than ``D / 3`` to the boundary. Without it a robot driving at a wall covers its whole
-     certified clearance in one step and can stop where the certified bound is 0 (it is up to
-     2.5 mm low), where the safety limit holds it for good (measured on random12_seed5 and 6).
+     safety horizon, :data:`SAFETY_HORIZON` when the safety limit is off; ``n`` as in 2 within
+     ``D``, else ``nu``): one step does not take the robot closer than ``D / 3`` to the
+     boundary. Without it a robot driving at a wall covers its whole certified clearance in one
+     step and can stop where the certified bound is 0 (it is up to 2.5 mm low), where the safety
+     limit holds it for good (measured on random12_seed5 and 6).
 
   Steps 1-2 only change the direction and step 3 only lowers ``v``; the safety limit is applied
   as before, so one step still moves the robot by at most the certified clearance. ``D`` is
@@ -110,20 +111,26 @@ Choices where the paper is silent or loose, and why:
   :class:`~navigation.errors.NavigationError`; commands are always finite.
 
 A controller step is a pure function of the pose and the waypoint fields: one field
-evaluation (two with a following waypoint), about a millisecond at 20 obstacles.
+evaluation (two with a following waypoint), about a millisecond at 20 obstacles. With the
+stand-off, each field's grown boundaries are also evaluated once per step
+(:meth:`OrientedField.boundary_scan` at the largest of the three reaches, :func:`_band`), and
+within ``2 D`` of a boundary the field once more at the wall-flow foot point.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
 from .errors import NavigationError
-from .oriented import OrientedField, wrap_angle
+from .oriented import BoundaryFrame, OrientedField, wrap_angle
 
-__all__ = ["ControllerConfig", "Command", "track", "track_waypoints", "switch_weight"]
+__all__ = ["ControllerConfig", "Command", "track", "track_waypoints", "switch_weight", "SAFETY_HORIZON"]
+
+SAFETY_HORIZON = 0.1  #: default ``ControllerConfig.safety_horizon`` (s), the paper's control period
 
 
 @dataclass(frozen=True, slots=True)
@@ -167,7 +174,7 @@ class ControllerConfig:
     k_switch: float = 2.0
     switch_margin: float = 0.1
     heading_gate: bool = True
-    safety_horizon: float = 0.1
+    safety_horizon: float = SAFETY_HORIZON
     push_forward: bool = False
     boundary_blend: float = 0.005
     standoff: float = 0.0
@@ -237,9 +244,10 @@ def _unit_blend(t0: float, g0: np.ndarray, t1: float, g1: np.ndarray, w: float, 
     return math.atan2(b[1], b[0]), (b[0] * jb[1] - b[1] * jb[0]) / nb2
 
 
-def _direction(q: np.ndarray, field: OrientedField, cfg: ControllerConfig):
+def _direction(q: np.ndarray, field: OrientedField, cfg: ControllerConfig, band: "_Band | None"):
     """``(theta_gamma, grad theta_gamma, tanh |q - q_G|)`` of one field: the gradient direction,
-    or with ``cfg.push_forward`` the push-forward direction blended into it next to boundaries."""
+    or with ``cfg.push_forward`` the push-forward direction blended into it next to boundaries;
+    with the stand-off, changed within its band (``band = _band(q, field, cfg)``)."""
     ev = field.evaluate(q)
     speed = math.tanh(float(np.linalg.norm(q - field.goal)))
     tg, grad = float(ev.angle), np.asarray(ev.angle_gradient, dtype=float)
@@ -255,8 +263,8 @@ def _direction(q: np.ndarray, field: OrientedField, cfg: ControllerConfig):
             out = _unit_blend(tf, gf, tg, grad, _smoothstep(1.0 - c / delta)[0], np.zeros(2))
             if out is not None:
                 tg, grad = out
-    if cfg.standoff > 0 and bool(ev.free) and not bool(ev.degenerate):
-        tg, grad = _standoff(q, tg, grad, field, cfg)
+    if band is not None and bool(ev.free) and not bool(ev.degenerate):
+        tg, grad = _standoff(q, tg, grad, field, cfg, band)
     return tg, grad, speed
 
 
@@ -269,7 +277,41 @@ def _smoothstep(x: float) -> tuple[float, float]:
 WALL_OFFSET = 0.001  #: distance (m) from the grown boundary at which the wall flow is read
 
 
-def _standoff(q: np.ndarray, tg: float, grad: np.ndarray, field: OrientedField, cfg: ControllerConfig):
+def _horizon(cfg: ControllerConfig) -> float:
+    """Step duration the approach limit assumes: the safety horizon, or its default (the paper's
+    control period) when the safety limit is off."""
+    return cfg.safety_horizon if cfg.safety_horizon > 0 else SAFETY_HORIZON
+
+
+class _Band(NamedTuple):
+    """The stand-off's view of one field's grown boundaries at one pose (:func:`_band`)."""
+
+    D: float  #: stand-off distance for this field, ``min(cfg.standoff, goal clearance / 4)``
+    wall: BoundaryFrame | None  #: reach ``2 D``: wall flow (:func:`_standoff`)
+    push: BoundaryFrame | None  #: reach ``D``: push out, and the approach limit's normal
+    approach: BoundaryFrame | None  #: reach ``D / 3 + v_max h``: approach limit (:func:`_approach_limit`)
+
+
+def _band(q: np.ndarray, field: OrientedField, cfg: ControllerConfig) -> "_Band | None":
+    """The boundary frames one controller step needs from ``field`` at ``q``, all read from one
+    boundary scan at the largest reach (:meth:`OrientedField.boundary_scan`: the grown boundaries
+    are evaluated once per field and pose; each frame equals ``field.boundary_frame(q, reach)``
+    bit for bit). ``None`` when the stand-off is off for this field (``D = 0``)."""
+    if not cfg.standoff > 0:
+        return None
+    D = min(cfg.standoff, 0.25 * field.goal_clearance)
+    if not D > 0:
+        return None
+    reaches = (2.0 * D, D, D / 3.0 + cfg.v_max * _horizon(cfg))
+    scan = field.boundary_scan(q, max(reaches))
+    if scan is None:  # no boundary within the largest reach, or q not in free space
+        return _Band(D, None, None, None)
+    frames = {r: scan.frame(r) for r in set(reaches)}
+    return _Band(D, *(frames[r] for r in reaches))
+
+
+def _standoff(q: np.ndarray, tg: float, grad: np.ndarray, field: OrientedField, cfg: ControllerConfig,
+              band: _Band):
     """Stand-off from grown boundaries (see the module doc), with its exact gradient.
 
     Within ``2 D`` of a grown boundary (``D = min(cfg.standoff, goal clearance / 4)``) the tracked
@@ -277,11 +319,8 @@ def _standoff(q: np.ndarray, tg: float, grad: np.ndarray, field: OrientedField, 
     push-forward direction at the point ``q_w = q - (delta - WALL_OFFSET) nu`` next to the
     nearest boundary; within ``D`` the result ``b`` is pushed out, ``u = b + W max(0, s - b.n) n``
     (``n``, ``W``: weighted normal and band weight of the boundaries within ``D``,
-    ``s = cfg.standoff_push``)."""
-    D = min(cfg.standoff, 0.25 * field.goal_clearance)
-    if not D > 0:
-        return tg, grad
-    fr = field.boundary_frame(q, 2.0 * D)
+    ``s = cfg.standoff_push``); the frames come from ``band`` (:func:`_band`)."""
+    D, fr = band.D, band.wall
     if fr is None:
         return tg, grad
     wp, dwp = _smoothstep((2.0 * D - fr.distance) / D)
@@ -305,7 +344,7 @@ def _standoff(q: np.ndarray, tg: float, grad: np.ndarray, field: OrientedField, 
             out = _unit_blend(tg, grad, float(ew.flow_angle), gw, wp, dwp)
             if out is not None:
                 tg, grad = out
-    fo = field.boundary_frame(q, D)
+    fo = band.push
     if fo is None:
         return tg, grad
     w, gw, tn, gn = fo.weight, fo.weight_gradient, fo.angle, fo.angle_gradient
@@ -324,16 +363,17 @@ def _standoff(q: np.ndarray, tg: float, grad: np.ndarray, field: OrientedField, 
     return math.atan2(u[1], u[0]), (u[0] * du[1] - u[1] * du[0]) / u2
 
 
-def _blend(q: np.ndarray, current: OrientedField, following: OrientedField, cfg: ControllerConfig):
+def _blend(q: np.ndarray, current: OrientedField, following: OrientedField, cfg: ControllerConfig, bands):
     """Eq. 25 on directions (see the module doc): direction of ``(1 - eta) u_n + eta u_{n+1}``,
-    its exact gradient (the switch's gradient included) and the blended speed factor."""
-    t0, g0, s0 = _direction(q, current, cfg)
+    its exact gradient (the switch's gradient included) and the blended speed factor
+    (``bands``: the two fields' :func:`_band`)."""
+    t0, g0, s0 = _direction(q, current, cfg, bands[0])
     diff = q - current.goal
     gamma = float(np.linalg.norm(diff))
     eta, deta = _switch(gamma, cfg)
     if eta <= 0.0:
         return t0, g0, s0
-    t1, g1, s1 = _direction(q, following, cfg)
+    t1, g1, s1 = _direction(q, following, cfg, bands[1])
     grad_eta = deta * diff / gamma if gamma > 0 else np.zeros(2)
     speed = (1.0 - eta) * s0 + eta * s1
     out = _unit_blend(t0, g0, t1, g1, eta, grad_eta)
@@ -342,28 +382,28 @@ def _blend(q: np.ndarray, current: OrientedField, following: OrientedField, cfg:
     return (*out, speed)
 
 
-def _approach_limit(q: np.ndarray, theta: float, fields, cfg: ControllerConfig) -> float:
+def _approach_limit(theta: float, bands, cfg: ControllerConfig) -> float:
     """Speed limit of the stand-off (see the module doc): ``v max(0, -Theta . n) h <=
     max(0, delta - D / 3)`` with ``delta`` the first-order distance to the nearest grown boundary
     (within ``D / 3 + v_max h``), ``n`` the weighted normal of :func:`_standoff` within ``D`` and
-    the nearest boundary's normal farther out."""
+    the nearest boundary's normal farther out; ``h`` is :func:`_horizon`. ``bands``: each
+    field's :func:`_band` at the pose."""
     if not cfg.standoff > 0:
         return math.inf
-    h = cfg.safety_horizon if cfg.safety_horizon > 0 else 0.1
+    h = _horizon(cfg)
     heading = np.array([math.cos(theta), math.sin(theta)])
     limit = math.inf
-    for field in fields:
-        D = min(cfg.standoff, 0.25 * field.goal_clearance)
-        fr = field.boundary_frame(q, D / 3.0 + cfg.v_max * h) if D > 0 else None
+    for band in bands:
+        fr = None if band is None else band.approach
         if fr is None:
             continue
         # within D: the weighted normal the tracked direction is pushed along (so a robot facing
         # the tracked direction is never held); farther out: the nearest boundary's normal
-        near = field.boundary_frame(q, D)
+        near = band.push
         normal = fr.normal if near is None else np.array([math.cos(near.angle), math.sin(near.angle)])
         inward = -float(heading @ normal)
         if inward > 0.0:
-            limit = min(limit, max(0.0, fr.distance - D / 3.0) / (h * inward))
+            limit = min(limit, max(0.0, fr.distance - band.D / 3.0) / (h * inward))
     return limit
 
 
@@ -402,9 +442,10 @@ def track(pose, field: OrientedField, config: ControllerConfig = ControllerConfi
         Non-finite or malformed pose.
     """
     q, theta = _pose(pose)
-    tg, grad, speed = _direction(q, field, config)
+    band = _band(q, field, config)
+    tg, grad, speed = _direction(q, field, config, band)
     return _command(theta, tg, grad, speed, _clearance(q, (field,), config), config,
-                    _approach_limit(q, theta, (field,), config))
+                    _approach_limit(theta, (band,), config))
 
 
 def switch_weight(distance: float, config: ControllerConfig = ControllerConfig()) -> float:
@@ -428,6 +469,7 @@ def track_waypoints(pose, current: OrientedField, following: OrientedField | Non
     q, theta = _pose(pose)
     if following is None:
         return track(pose, current, config)
-    tg, grad, speed = _blend(q, current, following, config)
+    bands = (_band(q, current, config), _band(q, following, config))
+    tg, grad, speed = _blend(q, current, following, config, bands)
     return _command(theta, tg, grad, speed, _clearance(q, (current, following), config), config,
-                    _approach_limit(q, theta, (current, following), config))
+                    _approach_limit(theta, bands, config))

@@ -78,7 +78,8 @@ points out of it. ``Upsilon`` (``field``, ``jacobian``, ``angle``) is unchanged;
 ``ControllerConfig(push_forward=True)``.
 
 :meth:`OrientedField.boundary_frame` (first-order distances and normals of the grown boundaries
-near a point, exact gradients) and :attr:`OrientedField.goal_clearance` serve the controller's
+near a point, exact gradients; :meth:`OrientedField.boundary_scan` evaluates the boundaries once
+for several reaches) and :attr:`OrientedField.goal_clearance` serve the controller's
 opt-in stand-off (:mod:`navigation.control`); they are not part of the field.
 
 Degenerate points: the goal itself (``|q - q_G| < GOAL_TOLERANCE``) and critical points
@@ -102,8 +103,8 @@ from .clearance import forest_clearance
 from .errors import NavigationError, OutsideFreeSpaceError
 from .geometry import _beta_derivatives, pack
 
-__all__ = ["OrientedField", "OrientedEval", "BoundaryFrame", "wrap_angle", "DIPOLE_FRACTION", "GRADIENT_FLOOR",
-           "GOAL_TOLERANCE"]
+__all__ = ["OrientedField", "OrientedEval", "BoundaryFrame", "BoundaryScan", "wrap_angle", "DIPOLE_FRACTION",
+           "GRADIENT_FLOOR", "GOAL_TOLERANCE"]
 
 DIPOLE_FRACTION = 0.3
 GRADIENT_FLOOR = 1e-300
@@ -157,7 +158,8 @@ class OrientedEval:
 
 
 class BoundaryFrame(NamedTuple):
-    """Grown boundaries near a point (:meth:`OrientedField.boundary_frame`); every gradient exact.
+    """Grown boundaries near a point (:meth:`OrientedField.boundary_frame`,
+    :meth:`BoundaryScan.frame`); every gradient exact.
 
     Attributes
     ----------
@@ -180,6 +182,69 @@ class BoundaryFrame(NamedTuple):
     distance_gradient: np.ndarray
     normal: np.ndarray
     normal_jacobian: np.ndarray
+
+
+class BoundaryScan:
+    """The grown boundaries within ``reach`` of one point (:meth:`OrientedField.boundary_scan`),
+    evaluated once: per boundary ``i`` (forest order) the first-order distance ``delta_i``, the
+    unit normal ``nu_i`` into free space and their exact gradients.
+
+    :meth:`frame` gives the :class:`BoundaryFrame` for any reach up to ``reach``: a smaller reach
+    only drops the boundaries beyond it and narrows the band weights, the per-boundary values do
+    not depend on it. The frame is the one :meth:`OrientedField.boundary_frame` returns for that
+    reach, bit for bit (``boundary_frame`` is ``boundary_scan(q, r).frame(r)``, and each
+    per-boundary value is computed row by row); the controller's stand-off reads its three
+    reaches from one scan per field and pose.
+    """
+
+    __slots__ = ("reach", "_delta", "_grad_delta", "_nu", "_dnu")
+
+    def __init__(self, reach: float, delta: np.ndarray, grad_delta: np.ndarray, nu: np.ndarray,
+                 dnu: np.ndarray):
+        self.reach = reach
+        self._delta, self._grad_delta, self._nu, self._dnu = delta, grad_delta, nu, dnu
+
+    def __repr__(self) -> str:
+        return f"BoundaryScan(reach={self.reach:.4g}, boundaries={len(self._delta)})"
+
+    def frame(self, reach: float) -> "BoundaryFrame | None":
+        """:class:`BoundaryFrame` of the boundaries within ``reach`` (at most the scan's), or
+        ``None`` when none is that close or their weighted normals cancel.
+
+        Raises
+        ------
+        ValueError
+            ``reach`` exceeds the scan's (boundaries beyond it were not evaluated).
+        """
+        reach = float(reach)
+        if not (math.isfinite(reach) and reach > 0):
+            return None
+        if reach > self.reach:
+            raise ValueError(f"reach {reach} exceeds the scan's {self.reach}")
+        sel = self._delta < reach
+        if not sel.any():
+            return None
+        delta, grad_delta, nu, dnu = (a[sel] for a in (self._delta, self._grad_delta, self._nu, self._dnu))
+        t = np.clip(2.0 * (reach - delta) / reach, 0.0, 1.0)
+        w = t * t * (3.0 - 2.0 * t)
+        dw = (6.0 * t * (1.0 - t) * (-2.0 / reach))[:, None] * grad_delta
+        one = 1.0 - w
+        weight = 1.0 - float(np.prod(one))
+        grad_weight = np.zeros(2)
+        for i in range(len(w)):
+            grad_weight += dw[i] * float(np.prod(np.delete(one, i)))
+        N = (w[:, None] * nu).sum(0)
+        dN = (nu[:, :, None] * dw[:, None, :] + w[:, None, None] * dnu).sum(0)
+        n2 = float(N @ N)
+        if not n2 > 1e-12:
+            return None
+        angle = math.atan2(N[1], N[0])
+        angle_gradient = (N[0] * dN[1] - N[1] * dN[0]) / n2
+        i = int(np.argmin(delta))
+        out = BoundaryFrame(weight, grad_weight, angle, angle_gradient, float(delta[i]), grad_delta[i],
+                            nu[i], dnu[i])
+        finite = all(np.isfinite(np.asarray(v, dtype=float)).all() for v in out)
+        return out if finite else None  # pragma: no cover (finite)
 
 
 class OrientedField:
@@ -281,7 +346,19 @@ class OrientedField:
         ``delta_i = sigma_i beta_i / |grad beta_i|`` is the first-order (one Newton step)
         distance to its boundary (``sigma = +1`` for obstacles, ``-1`` for the workspace) and
         ``nu_i = sigma_i grad beta_i / |grad beta_i|`` the unit normal into free space; all
-        derivatives are exact (Hessians of ``beta``)."""
+        derivatives are exact (Hessians of ``beta``).
+
+        Same as ``boundary_scan(q, reach).frame(reach)``; for several reaches at one point, scan
+        once with the largest (:meth:`boundary_scan`)."""
+        scan = self.boundary_scan(q, reach)
+        return None if scan is None else scan.frame(reach)
+
+    def boundary_scan(self, q, reach: float) -> "BoundaryScan | None":
+        """The per-boundary part of :meth:`boundary_frame` at one point ``q (2,)``, for the
+        boundaries within ``reach``: evaluated once, it gives the frame for any reach up to
+        ``reach`` (:meth:`BoundaryScan.frame`) without re-evaluating the boundaries. ``None``
+        when ``q`` is not in free space or no boundary is within ``reach`` (then every frame up
+        to ``reach`` is ``None``)."""
         q = np.asarray(q, dtype=float).reshape(2)
         reach = float(reach)
         if not (math.isfinite(reach) and reach > 0):
@@ -313,26 +390,7 @@ class OrientedField:
         ghat = g / L[:, None]
         proj = np.eye(2)[None] - ghat[:, :, None] * ghat[:, None, :]
         dnu = sg[:, None, None] * (proj @ H) / L[:, None, None]  # d nu_i / d q_j
-        t = np.clip(2.0 * (reach - delta) / reach, 0.0, 1.0)
-        w = t * t * (3.0 - 2.0 * t)
-        dw = (6.0 * t * (1.0 - t) * (-2.0 / reach))[:, None] * grad_delta
-        one = 1.0 - w
-        weight = 1.0 - float(np.prod(one))
-        grad_weight = np.zeros(2)
-        for i in range(len(w)):
-            grad_weight += dw[i] * float(np.prod(np.delete(one, i)))
-        N = (w[:, None] * nu).sum(0)
-        dN = (nu[:, :, None] * dw[:, None, :] + w[:, None, None] * dnu).sum(0)
-        n2 = float(N @ N)
-        if not n2 > 1e-12:
-            return None
-        angle = math.atan2(N[1], N[0])
-        angle_gradient = (N[0] * dN[1] - N[1] * dN[0]) / n2
-        i = int(np.argmin(delta))
-        out = BoundaryFrame(weight, grad_weight, angle, angle_gradient, float(delta[i]), grad_delta[i],
-                            nu[i], dnu[i])
-        finite = all(np.isfinite(np.asarray(v, dtype=float)).all() for v in out)
-        return out if finite else None  # pragma: no cover (finite)
+        return BoundaryScan(reach, delta, grad_delta, nu, dnu)
 
     def evaluate(self, q) -> OrientedEval:
         """Everything at once (see :class:`OrientedEval`); unbatched for ``(2,)`` input."""

@@ -276,7 +276,7 @@ def test_standoff_direction_gradient_matches_finite_differences(push_forward):
     directions fold on sub-micrometre scales in places). With ``push_forward`` the points within
     ``boundary_blend`` are left out: there the base direction's blend weight is treated as locally
     constant (documented), and it is tracked wherever the wall flow's foot point is unusable."""
-    from navigation.control import _direction
+    from navigation.control import _band, _direction
 
     world, field = _random4_field()
     cfg = ControllerConfig.from_robot(world.robot, push_forward=push_forward, standoff=STANDOFF)
@@ -288,10 +288,13 @@ def test_standoff_direction_gradient_matches_finite_differences(push_forward):
             continue
         if push_forward and c < cfg.boundary_blend:
             continue  # the push-forward's own boundary blend treats its weight as constant
-        tg, grad, _ = _direction(q, field, cfg)
+        def direction(p):
+            return _direction(p, field, cfg, _band(p, field, cfg))
+
+        tg, grad, _ = direction(q)
 
         def fd(h):
-            return np.array([wrap_angle(_direction(q + e, field, cfg)[0] - _direction(q - e, field, cfg)[0]) / (2 * h)
+            return np.array([wrap_angle(direction(q + e)[0] - direction(q - e)[0]) / (2 * h)
                              for e in np.eye(2) * h])
 
         a, b = fd(1e-6), fd(1e-7)
@@ -316,6 +319,39 @@ def test_standoff_keeps_the_robot_off_the_boundary_and_reaches_the_goal_past_a_c
     assert sim.time < 60.0 and sim.metrics.min_clearance > 0.005
     off, _ = run_closed_loop(world, field, start, ControllerConfig.from_robot(world.robot), max_steps=600)
     assert not off  # the trench run this remedies (60 s: it is still there)
+
+
+def test_standoff_shared_boundary_scan_gives_the_commands_of_separate_frames():
+    """One controller step reads the stand-off's three frames (reaches ``2 D``, ``D`` and
+    ``D / 3 + v_max h``) from one boundary scan per field (``navigation.control._band``): the
+    frames and the commands equal, bit for bit, those built from a separate
+    ``OrientedField.boundary_frame`` call per reach (as the controller did before)."""
+    from navigation.control import _Band, _approach_limit, _band, _clearance, _command, _direction
+
+    world, field = _random4_field()
+    cfg = ControllerConfig.from_robot(world.robot, standoff=STANDOFF)
+    D = min(STANDOFF, 0.25 * field.goal_clearance)
+    reaches = (2 * D, D, D / 3 + cfg.v_max * cfg.safety_horizon)
+    rng = np.random.default_rng(11)
+    acting = 0
+    for q in random_free_points(world, 300, rng, margin=world.robot.radius + 0.0005):
+        if float(field.clearance(q, 0.1)) >= 0.08:
+            continue
+        separate = _Band(D, *(field.boundary_frame(q, reach) for reach in reaches))
+        shared = _band(q, field, cfg)
+        for a, b in zip(shared[1:], separate[1:]):
+            assert (a is None) == (b is None)
+            if a is not None:
+                assert all(np.asarray(x).tobytes() == np.asarray(y).tobytes() for x, y in zip(a, b))
+        acting += separate.wall is not None
+        th = rng.uniform(-np.pi, np.pi)
+        tg, grad, speed = _direction(q, field, cfg, separate)
+        ref = _command(th, tg, grad, speed, _clearance(q, (field,), cfg), cfg,
+                       _approach_limit(th, (separate,), cfg))
+        cmd = track((q[0], q[1], th), field, cfg)
+        assert [float(x).hex() for x in (cmd.v, cmd.omega, cmd.theta_gamma)] == \
+            [float(x).hex() for x in (ref.v, ref.omega, ref.theta_gamma)] and cmd.clipped == ref.clipped
+    assert acting >= 20, acting
 
 
 def test_standoff_limits_the_approach_to_a_boundary():

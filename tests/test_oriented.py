@@ -160,3 +160,39 @@ def test_boundary_frame_derivatives_match_finite_differences(name):
     assert field.boundary_frame(field.goal, 0.1) is None
     assert field.boundary_frame(field.nf.forest.obstacles[0].center, reach) is None
     assert field.goal_clearance == pytest.approx(field.clearance.exact(field.goal))
+
+
+def _same_frame(a, b) -> bool:
+    """Bit-for-bit equality of two ``BoundaryFrame | None`` (signed zeros included)."""
+    if a is None or b is None:
+        return a is None and b is None
+    return all(np.asarray(x, dtype=float).tobytes() == np.asarray(y, dtype=float).tobytes() for x, y in zip(a, b))
+
+
+@pytest.mark.parametrize("name", ["office", "random4"])
+def test_boundary_scan_frames_equal_separate_boundary_frames(name):
+    """``OrientedField.boundary_scan`` evaluates the boundaries once for several reaches (the
+    controller's stand-off reads three from one scan): the frame it gives for a smaller reach is
+    bit for bit ``boundary_frame`` at that reach, ``None`` cases included; a larger one is refused."""
+    from .worldgen import random_forest_world
+
+    world = random_forest_world(4, gap=0.3) if name == "random4" else shared_world(name)
+    r = world.robot.radius
+    rng = np.random.default_rng(5)
+    goal = random_free_points(world, 1, rng, margin=r + 0.2)[0]
+    field = OrientedField(navigation.NavigationFunction(world, goal=goal, inflation=r), heading=-0.7)
+    top, reaches = 0.08, (0.01, 0.02, 0.03, 0.03 / 3 + 0.5 * 0.1, 0.06, 0.08)
+    framed = dropped = 0
+    for q in random_free_points(world, 400, rng, margin=r + 0.0005):
+        scan = field.boundary_scan(q, top)
+        if scan is None:
+            assert all(field.boundary_frame(q, reach) is None for reach in reaches)
+            continue
+        for reach in reaches:
+            sep = field.boundary_frame(q, reach)
+            assert _same_frame(scan.frame(reach), sep), (q, reach)
+            framed += sep is not None
+        dropped += int(0 < (scan._delta < 0.03).sum() < len(scan._delta))  # the smaller reach drops some
+        with pytest.raises(ValueError):
+            scan.frame(top * 1.5)
+    assert framed >= 100 and dropped >= 3, (framed, dropped)
