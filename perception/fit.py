@@ -361,21 +361,30 @@ class _Problem:
     free points inside the estimate (``g < 1``, where the penalty is active: outside it the
     penalty and its derivatives are 0) and the extent regularisation. Same values as
     :func:`_residuals` / :func:`_residuals_jac` (tested); a free point outside the estimate, most
-    of them, costs nothing in the Jacobian."""
+    of them, costs nothing in the Jacobian. :meth:`jacobian` is evaluated where :meth:`residuals`
+    was last (the accepted step of :func:`_lm`) and takes the local coordinates and the terms of
+    the gauge from it (the same numbers, computed once: the arithmetic of :func:`_gauge_jac`
+    with fewer array operations)."""
 
-    __slots__ = ("Q", "nq", "nf", "w_free", "ref", "wq")
+    __slots__ = ("Q", "nq", "nf", "w_free", "ref", "wq", "_at", "_terms")
 
     def __init__(self, q: np.ndarray, free: np.ndarray, w_free: float, ref=None, wq=None):
         self.nq, self.nf = len(q), len(free)
         self.Q = np.concatenate((q, free)) if len(free) else q
         self.w_free, self.ref, self.wq = w_free, ref, wq
+        self._at, self._terms = None, None
 
     def residuals(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(residuals, g)``: :func:`_residuals` at ``p`` and the gauge of every row of ``Q``."""
         u, v = _local(p, self.Q)
         a, b = math.exp(p[2]), math.exp(p[3])
-        g = _gauge_xy(u / a, v / b, p[5])
+        # (:func:`_gauge_xy`, its terms kept for :meth:`jacobian`)
+        x, y = u / a, v / b
+        x2, y2 = x * x, y * y
+        T = x2 * x2 + y2 * y2 + (2.0 - 4.0 * p[5] * p[5]) * x2 * y2
+        g = np.sqrt(0.5 * (x2 + y2 + np.sqrt(np.maximum(T, 0.0))))
         rho = np.hypot(u, v)
+        self._at, self._terms = p, (u, v, x, y, x2, y2, T, rho)
         nq = self.nq
         n = nq + self.nf + (0 if self.ref is None else 2)
         out = np.empty(n)
@@ -393,17 +402,39 @@ class _Problem:
     def jacobian(self, p: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
         """``(J, rows)``: the rows ``rows`` of :func:`_residuals_jac` at ``p`` (``None``: all rows),
         the others being zero there; ``g`` is the gauge :meth:`residuals` returned at ``p``."""
+        if self._at is not p:
+            self.residuals(p)
         nq, nf = self.nq, self.nf
         rows = None
-        Q = self.Q
+        u, v, x, y, x2, y2, T, rho = self._terms
         if nf:
             act = np.flatnonzero(g[nq:] < 1.0)
             if len(act) < nf:
                 rows = np.concatenate((np.arange(nq), nq + act))
-                Q = Q[rows]
+                u, v, x, y, x2, y2, T, rho = (t[rows] for t in self._terms)
             nf = len(act)
-        u, v = _local(p, Q)
-        gg, dg, rho, drho = _gauge_jac(u, v, p)
+        # :func:`_gauge_jac`, term by term (the same arithmetic)
+        a, b, s = math.exp(p[2]), math.exp(p[3]), p[5]
+        c, sn = math.cos(p[4]), math.sin(p[4])
+        k = 2.0 - 4.0 * s * s
+        R = np.sqrt(np.maximum(T, 1e-300))
+        gg = np.sqrt(np.maximum(0.5 * (x2 + y2 + R), 1e-300))
+        R2 = 2.0 * R
+        dBx = x + (2.0 * x2 * x + k * x * y2) / R2
+        dBy = y + (2.0 * y2 * y + k * x2 * y) / R2
+        g2 = 2.0 * gg
+        gx, gy = dBx / (g2 * a), dBy / (g2 * b)
+        m = len(u)
+        dg = np.empty((m, 6))
+        dg[:, 0] = gx * -c + gy * sn
+        dg[:, 1] = gx * -sn + gy * -c
+        dg[:, 2] = -dBx * x / g2
+        dg[:, 3] = -dBy * y / g2
+        dg[:, 4] = gx * v - gy * u
+        dg[:, 5] = -2.0 * s * x2 * y2 / R / g2
+        rc = np.maximum(rho, 1e-300)
+        dr0 = (u * -c + v * sn) / rc
+        dr1 = (u * -sn + v * -c) / rc
         n = nq + nf + (0 if self.ref is None else 2)
         J = np.empty((n, 6))
         gq, dq = gg[:nq], dg[:nq]
@@ -411,20 +442,30 @@ class _Problem:
         if np.any(clamp):
             dq[clamp] = 0.0
             gq = np.maximum(gq, 1e-6)
-        Jq = drho[:nq] * (1.0 - 1.0 / gq)[:, None] + (rho[:nq] / (gq * gq))[:, None] * dq
-        J[:nq] = Jq if self.wq is None else Jq * self.wq[:, None]
+        Jq = J[:nq]
+        np.multiply((rho[:nq] / (gq * gq))[:, None], dq, out=Jq)
+        e = 1.0 - 1.0 / gq
+        Jq[:, 0] += dr0[:nq] * e
+        Jq[:, 1] += dr1[:nq] * e
+        if self.wq is not None:
+            Jq *= self.wq[:, None]
         if nf:
             gf, dgf, rf = gg[nq:], dg[nq:], rho[nq:]
             active = gf < 1.0
             low = gf < 0.2
             gf = np.maximum(gf, 0.2)
             dgf[low] = 0.0
-            Jf = self.w_free * (drho[nq:] * np.maximum(1.0 / gf - 1.0, 0.0)[:, None] - (rf / (gf * gf))[:, None] * dgf)
+            Jf = J[nq:nq + nf]
+            np.multiply((rf / (gf * gf))[:, None], dgf, out=Jf)
+            np.negative(Jf, out=Jf)
+            ef = np.maximum(1.0 / gf - 1.0, 0.0)
+            Jf[:, 0] += dr0[nq:] * ef
+            Jf[:, 1] += dr1[nq:] * ef
+            if self.w_free != 1.0:
+                Jf *= self.w_free
             Jf[~active] = 0.0
-            J[nq:nq + nf] = Jf
         if self.ref is not None:
             ref = self.ref
-            a, b = math.exp(p[2]), math.exp(p[3])
             J[n - 2:] = 0.0
             J[n - 2, 2] = ref[2] * a if a > ref[0] else 0.0
             J[n - 1, 3] = ref[2] * b if b > ref[1] else 0.0
@@ -452,24 +493,28 @@ def _lm(x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, scale: np.ndarray, args:
     J *= scale
     nfev, mu, nu = 1, None, 2.0
     eye = np.eye(len(x))
+    hi_, lo_ = hi - 1e-12, lo + 1e-12
     while nfev < max_nfev:
         A = J.T @ J
         g = J.T @ (r if rows is None else r[rows])
         if mu is None:
             mu = 1e-4 * max(float(np.max(np.diag(A))), 1e-12)
         # variables at a bound that the descent direction pushes outwards stay there
-        free_ = ~(((x >= hi - 1e-12) & (g < 0)) | ((x <= lo + 1e-12) & (g > 0)))
-        h = np.zeros_like(x)
+        up, down = x >= hi_, x <= lo_
+        free_ = ~((up & (g < 0)) | (down & (g > 0))) if (up.any() or down.any()) else None
         try:
-            if free_.all():
+            if free_ is None or free_.all():
                 h = np.linalg.solve(A + mu * eye, -g)
             else:
+                h = np.zeros_like(x)
                 h[free_] = np.linalg.solve((A + mu * eye)[np.ix_(free_, free_)], -g[free_])
         except np.linalg.LinAlgError:
             break
-        xn = np.clip(x + h * scale, lo, hi)
+        # (np.clip, np.linalg.norm: the same numbers without the wrappers' overhead)
+        xn = np.minimum(np.maximum(x + h * scale, lo), hi)
         hz = (xn - x) / scale
-        small = float(np.linalg.norm(hz)) < xtol * (xtol + float(np.linalg.norm(x / scale)))
+        xs = x / scale
+        small = math.sqrt(float(hz @ hz)) < xtol * (xtol + math.sqrt(float(xs @ xs)))
         rn, gn = prob.residuals(xn)
         nfev += 1
         Fn = 0.5 * float(rn @ rn)
