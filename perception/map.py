@@ -30,7 +30,9 @@ The map starts knowing only the workspace and grows from scans:
    raises what it would without computing the terms only navigation needs). The check runs on
    the changed estimates and everything
    near them (bounding circles within ``min_gap``), which is equivalent to checking the whole
-   map because the untouched part was accepted before. A :class:`~navigation.ForestError` is
+   map because the untouched part was accepted before; it is skipped when a cheap certificate
+   proves that it passes (:meth:`ObstacleMap._certified`: changed estimates inside the
+   workspace, clear of or deeply overlapping their neighbours, adding no cycle). A :class:`~navigation.ForestError` is
    repaired conservatively: a too-close or shallow pair is grown by 3 cm per try (the smaller
    estimate's face towards the other), a cycle is
    broken by merging the two closest members into one squircle covering both, after three
@@ -131,20 +133,59 @@ class MapUpdate:
         return bool(self.added or self.updated or self.removed)
 
 
-_SAMPLE_CACHE: dict[int, tuple[Squircle, np.ndarray]] = {}
+_SAMPLE_CACHE: dict[tuple[int, int], tuple[Squircle, np.ndarray]] = {}
 _OFFSETS: dict[int, np.ndarray] = {}
+_CERT_MARGIN = 0.01  # m beyond min_gap / min_overlap that the forest certificate asks for
 
 
 def _samples(sq: Squircle, n: int = 64) -> np.ndarray:
-    """``n`` boundary points of ``sq`` (cached per object)."""
-    hit = _SAMPLE_CACHE.get(id(sq))
+    """``n`` boundary points of ``sq``, counter-clockwise (cached per object and ``n``)."""
+    hit = _SAMPLE_CACHE.get((id(sq), n))
     if hit is not None and hit[0] is sq:
         return hit[1]
     if len(_SAMPLE_CACHE) > 4096:
         _SAMPLE_CACHE.clear()
     pts = sq.boundary_points(n)
-    _SAMPLE_CACHE[id(sq)] = (sq, pts)
+    _SAMPLE_CACHE[(id(sq), n)] = (sq, pts)
     return pts
+
+
+def _spacing(pts: np.ndarray) -> float:
+    """Largest distance between consecutive points of a closed polygon."""
+    d = pts - np.roll(pts, 1, axis=0)
+    return float(np.sqrt(np.max(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])))
+
+
+def _polygon_depth(pts: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Depth of points ``q (K, 2)`` in the convex polygon of the counter-clockwise boundary points
+    ``pts (n, 2)`` of a squircle (distance to the nearest edge line, negative outside one): a
+    lower bound of their depth in the squircle, which contains the polygon."""
+    e = np.roll(pts, -1, axis=0) - pts
+    L = np.hypot(e[:, 0], e[:, 1])
+    nx, ny = e[:, 1] / np.maximum(L, 1e-300), -e[:, 0] / np.maximum(L, 1e-300)  # outward normals
+    d = (pts[None, :, 0] - q[:, None, 0]) * nx + (pts[None, :, 1] - q[:, None, 1]) * ny
+    d[:, L <= 0] = -np.inf  # (a degenerate edge certifies nothing)
+    return d.min(axis=1)
+
+
+def _rect_separation(a: Squircle, b: Squircle) -> float:
+    """Largest gap between the projections of the rectangles ``width x height`` of ``a`` and
+    ``b`` on their four axes (separating axes): a lower bound of the distance between the two
+    squircles, which lie inside their rectangles; ``<= 0`` when no axis separates them."""
+    best = -math.inf
+    corners = []
+    for sq in (a, b):
+        c, s = math.cos(sq.theta), math.sin(sq.theta)
+        hw, hh = sq.width / 2, sq.height / 2
+        corners.append(np.array([[sq.center[0] + sx * hw * c - sy * hh * s, sq.center[1] + sx * hw * s + sy * hh * c]
+                                 for sx, sy in ((1, 1), (-1, 1), (-1, -1), (1, -1))]))
+    for sq in (a, b):
+        c, s = math.cos(sq.theta), math.sin(sq.theta)
+        for ax in ((c, s), (-s, c)):
+            pa = corners[0] @ ax
+            pb = corners[1] @ ax
+            best = max(best, float(pb.min() - pa.max()), float(pa.min() - pb.max()))
+    return best
 
 
 def _graph_components(n: int, e0: np.ndarray, e1: np.ndarray) -> np.ndarray:
@@ -279,7 +320,8 @@ class ObstacleMap:
         self.last_pose: tuple[float, float, float] | None = None
         self.scans = 0
         #: counters: refit triggers (``refit_new``, ``refit_merged``, ``refit_grown``,
-        #: ``refit_free``), ``forest_checks`` (calls of check_forest), ``repairs``,
+        #: ``refit_free``), ``forest_checks`` (calls of check_forest), ``forest_certified``
+        #: (forest checks found unnecessary by :meth:`_certified`), ``repairs``,
         #: ``reverts``, ``recovered`` (returns a region trim left uncovered, fitted again)
         self.stats: Counter = Counter()
 
@@ -922,19 +964,128 @@ class ObstacleMap:
                     todo.append(j)
         return sorted(out)
 
+    def _ws_inside(self, sq: Squircle, need: float) -> bool:
+        """``sq`` lies inside the workspace shrunk by the radius, farther than ``need`` from its
+        boundary (lower bounds of the distance, cheapest first): the depth of a point ``p`` of a
+        squircle is at least ``(1 - g(p)) r`` (``g`` the gauge about its centre, ``r = min(width,
+        height) / 2`` the radius of a disc about the centre it contains), first for the bounding
+        disc of ``sq``, then for its 64 boundary samples, then their distance to the nearest of
+        4096 samples of the workspace boundary; less one sample spacing of each (every boundary
+        point is that close to a sample)."""
+        ws = self.cspace_workspace
+        rin = min(ws.width, ws.height) / 2
+        if (1.0 - float(gauge(ws, np.asarray(sq.center))[0])) * rin - sq.bounding_radius > need:
+            return True
+        pts = _samples(sq)
+        g = gauge(ws, pts)
+        if not bool(np.all(g < 1.0)):
+            return False
+        sp = _spacing(pts)
+        if float((1.0 - g).min()) * rin - sp > need:
+            return True
+        return float(self._ws_tree.query(pts)[0].min()) - self._ws_spacing - sp > need
+
+    def _certified(self, proposed: dict, seeds: set, sub: list[int]) -> bool:
+        """True when the forest check of ``sub`` (the changed estimates ``seeds`` and the
+        estimates near them) provably passes, so that it need not run.
+
+        Sufficient conditions, with a margin ``_CERT_MARGIN`` beyond ``min_gap`` and
+        ``min_overlap`` (far above the accuracy of the construction's distances and common
+        centres):
+
+        * every changed estimate lies inside the workspace (shrunk by the radius), farther than
+          ``min_gap`` plus the margin from its boundary (:meth:`_ws_inside`);
+        * every other estimate whose bounding disc comes within ``min_gap`` plus the margin of a
+          changed one is either separated from it by more than that (separating axes of the two
+          rectangles, :func:`_rect_separation`) or overlaps it with a point deeper than
+          ``min_overlap`` plus the margin in both (depth in the inscribed polygons of 64 boundary
+          samples, :func:`_polygon_depth`, at the mean of the samples of each inside the other):
+          no too-close pair, no shallow overlap, whatever the orientation of the tree;
+        * the graph of possible overlaps among ``sub`` and the workspace boundary (an edge
+          between two estimates unless their rectangles are separated, between an unchanged
+          estimate and the boundary unless it lies inside the workspace) has no cycle: a superset
+          of the construction's overlap graph (contained estimates are dropped there, which only
+          removes edges), so that graph is a forest.
+
+        The estimates outside ``sub`` are unchanged and connected to it by no possible overlap.
+        Then the construction accepts the map, as it accepted it before the change: with
+        isolated changes (a refitted piece that keeps its overlaps, a new lone obstacle) the
+        check's common centres and distances are not computed."""
+        cfg = self.config
+        seeds = {i for i in seeds if i in proposed}
+        if not seeds:
+            return True
+        gap = cfg.min_gap + _CERT_MARGIN
+        deep = cfg.min_overlap + _CERT_MARGIN
+        W = -1
+        parent = {i: i for i in sub}
+        parent[W] = W
+
+        def find(i):
+            while parent[i] != i:
+                parent[i] = parent[parent[i]]
+                i = parent[i]
+            return i
+
+        def link(i, j) -> bool:
+            ri, rj = find(i), find(j)
+            if ri == rj:
+                return False  # a possible cycle
+            parent[ri] = rj
+            return True
+
+        in_sub = set(sub)
+        for i in seeds:
+            if not self._ws_inside(proposed[i].inflated, gap):
+                return False  # crossing or near the boundary: the construction decides
+        for i in sub:
+            if i not in seeds and not self._ws_inside(proposed[i].inflated, 0.0) and not link(i, W):
+                return False
+        for i in seeds:
+            E = proposed[i].inflated
+            for j, f in proposed.items():
+                if j == i or j in in_sub:
+                    continue
+                F = f.inflated
+                if math.dist(E.center, F.center) > E.bounding_radius + F.bounding_radius + gap:
+                    continue
+                if _rect_separation(E, F) <= gap:
+                    return False  # near the changed estimate but not in ``sub``
+        for x, i in enumerate(sub):
+            E = proposed[i].inflated
+            for j in sub[x + 1:]:
+                F = proposed[j].inflated
+                changed = i in seeds or j in seeds
+                need = gap if changed else 0.0
+                if math.dist(E.center, F.center) > E.bounding_radius + F.bounding_radius + need:
+                    continue
+                sep = _rect_separation(E, F)
+                if sep > need:
+                    continue
+                if changed:
+                    if sep > 0:
+                        return False  # separated by less than ``gap``: a too-close pair?
+                    pa, pb = _samples(E), _samples(F)
+                    ia, ib = pa[gauge(F, pa) < 1.0], pb[gauge(E, pb) < 1.0]
+                    cand = [c.mean(axis=0) for c in (ia, ib, np.concatenate((ia, ib))) if len(c)]
+                    if not cand:
+                        return False
+                    cand = np.array(cand)
+                    d = np.minimum(_polygon_depth(pa, cand), _polygon_depth(pb, cand))
+                    if float(d.max()) <= deep:
+                        return False  # not certainly a deep overlap
+                if not link(i, j):
+                    return False
+        return True
+
     def _validate(self, proposed: dict, seeds: set):
         sub = self._subset(proposed, seeds)
         if not sub:
             return None, sub
         cfg = self.config
-        if len(sub) == 1:
-            # a lone estimate well inside the workspace satisfies every rule (no overlap, no
-            # neighbour, no crossing, clear of the boundary): no need to run the construction
-            pts = _samples(proposed[sub[0]].inflated, 128)
-            inside = bool(np.all(self.cspace_workspace.beta(pts) < 0))
-            # distance to the boundary >= distance to its nearest sample - half the spacing
-            if inside and float(self._ws_tree.query(pts)[0].min()) - self._ws_spacing > cfg.min_gap + 0.02:
-                return None, sub
+        if self._certified(proposed, seeds, sub):
+            self.stats["forest_certified"] += 1
+            return None, sub
         self.stats["forest_checks"] += 1
         try:
             check_forest(self.cspace_workspace, [proposed[i].inflated for i in sub], min_gap=cfg.min_gap,

@@ -172,3 +172,116 @@ def test_robot_near_an_inflated_corner_is_cleared():
     proposed, changed, removed, notes = {0: e}, set(), set(), []
     omap._clear_robot((p[0], p[1], 0.0), proposed, changed, removed, notes)
     assert 0 in changed and proposed[0].inflated.beta(p) > 0, notes
+
+
+def _cert_map():
+    """An office map and a helper making estimates from inflated squircles."""
+    from perception.map import Estimate
+
+    world = shared_world("office")
+    omap = ObstacleMap.from_world(world)
+
+    def est(i, center, w, h, theta=0.0, s=0.99):
+        from navigation.geometry import Squircle
+
+        sq = Squircle(center, w, h, theta, s)
+        return Estimate(i, sq, sq, i)  # the squircle stands for its own inflation here
+
+    return omap, est
+
+
+def _forest_passes(omap, proposed, sub) -> bool:
+    from navigation.forest import check_forest
+
+    cfg = omap.config
+    try:
+        check_forest(omap.cspace_workspace, [proposed[i].inflated for i in sub], min_gap=cfg.min_gap,
+                     min_overlap=cfg.min_overlap)
+    except navigation.ForestError:
+        return False
+    return True
+
+
+def test_forest_certificate_applies_to_isolated_and_leaf_changes():
+    """The forest check is skipped when it provably passes: changed estimates inside the
+    workspace whose neighbours are far or overlap deeply, adding no cycle (two isolated new
+    estimates; a changed piece of a chain that keeps one deep overlap at each end)."""
+    omap, est = _cert_map()
+    c = omap.cspace_workspace.center
+    # two isolated estimates changed at once (the old shortcut covered a lone one only)
+    proposed = {0: est(0, (c[0] - 1.0, c[1]), 0.4, 0.3), 1: est(1, (c[0] + 1.0, c[1]), 0.3, 0.5, 0.4)}
+    assert omap._certified(proposed, {0, 1}, [0, 1]) and _forest_passes(omap, proposed, [0, 1])
+    # a chain 0 - 1 - 2 of overlapping wall pieces inside the workspace, the middle one changed
+    proposed = {0: est(0, (c[0] - 1.0, c[1]), 1.0, 0.3), 1: est(1, (c[0], c[1]), 1.4, 0.3),
+                2: est(2, (c[0] + 1.0, c[1]), 1.0, 0.3)}
+    assert omap._certified(proposed, {1}, [0, 1, 2]) and _forest_passes(omap, proposed, [0, 1, 2])
+    # and the map counts the certified checks separately
+    n = omap.stats["forest_checks"]
+    assert omap._validate(proposed, {1})[0] is None
+    assert omap.stats["forest_checks"] == n and omap.stats["forest_certified"] == 1
+
+
+def test_forest_certificate_declines_what_it_cannot_prove():
+    """Cases the certificate must leave to the construction: a cycle, a cycle through the
+    workspace boundary, a shallow overlap, a near miss, a changed estimate crossing the
+    boundary."""
+    omap, est = _cert_map()
+    ws = omap.cspace_workspace
+    c = ws.center
+    # a triangle of overlapping estimates: a cycle (the construction refuses it)
+    tri = {0: est(0, (c[0] - 0.4, c[1]), 1.0, 0.3), 1: est(1, (c[0] + 0.4, c[1]), 1.0, 0.3),
+           2: est(2, (c[0], c[1] + 0.3), 0.3, 1.0)}
+    assert not omap._certified(tri, {2}, [0, 1, 2]) and not _forest_passes(omap, tri, [0, 1, 2])
+    # a changed estimate bridging two walls that cross the workspace boundary: a cycle through it
+    top = c[1] + ws.height / 2
+    walls = {0: est(0, (c[0] - 0.5, top - 0.3), 0.3, 1.0), 1: est(1, (c[0] + 0.5, top - 0.3), 0.3, 1.0),
+             2: est(2, (c[0], top - 0.65), 1.3, 0.3)}
+    assert not omap._certified(walls, {2}, [0, 1, 2]) and not _forest_passes(omap, walls, [0, 1, 2])
+    # overlapping by 5 mm only (accepted by the construction, but not certain to the margin)
+    thin = {0: est(0, (c[0] - 0.495, c[1]), 1.0, 0.3), 1: est(1, (c[0] + 0.5, c[1]), 1.0, 0.3)}
+    assert not omap._certified(thin, {1}, [0, 1])
+    # 5 mm apart (accepted with min_gap = 1 mm, not certain to the margin)
+    gap = {0: est(0, (c[0] - 0.5025, c[1]), 1.0, 0.3), 1: est(1, (c[0] + 0.5025, c[1]), 1.0, 0.3)}
+    assert not omap._certified(gap, {1}, [0, 1]) and _forest_passes(omap, gap, [0, 1])
+    # a changed wall crossing the workspace boundary: the construction decides
+    wall = {0: est(0, (c[0], top), 0.3, 0.6)}
+    assert not omap._certified(wall, {0}, [0]) and _forest_passes(omap, wall, [0])
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_forest_certificate_is_sound_on_random_maps(seed):
+    """Whenever the certificate holds, the construction accepts the map: random accepted maps
+    of squircles in the office workspace, some of them replaced or added (many of these changes
+    refused by the construction)."""
+    from perception.map import Estimate
+
+    from navigation.geometry import Squircle
+
+    omap, _ = _cert_map()
+    ws = omap.cspace_workspace
+    rng = np.random.default_rng(seed)
+    lo = np.asarray(ws.center) - [ws.width / 2, ws.height / 2]
+
+    def rand(i, near=None):
+        ctr = tuple(lo + rng.uniform(0.0, 1.0, 2) * [ws.width, ws.height]) if near is None else \
+            tuple(np.asarray(near.center) + rng.normal(0.0, 0.5, 2))
+        sq = Squircle(ctr, rng.uniform(0.1, 1.5), rng.uniform(0.1, 0.6), rng.uniform(-3, 3), rng.uniform(0.1, 0.99))
+        return Estimate(i, sq, sq, i)
+
+    certified = refused = tries = 0
+    while (certified < 40 or refused < 20) and tries < 2000:
+        tries += 1
+        n = int(rng.integers(1, 7))
+        old = {i: rand(i) for i in range(n)}
+        if not _forest_passes(omap, old, list(old)):
+            continue  # the map before the change was accepted
+        seeds = {int(k) for k in rng.choice(n + 1, size=int(rng.integers(1, 3)), replace=False)}
+        proposed = dict(old)
+        for i in seeds:  # mostly near an estimate of the map (a refit, a new piece next to it)
+            proposed[i] = rand(i, old[int(rng.integers(n))].squircle if rng.uniform() < 0.8 else None)
+        ok = _forest_passes(omap, proposed, list(proposed))
+        refused += not ok
+        if omap._certified(proposed, seeds, omap._subset(proposed, seeds)):
+            certified += 1
+            assert ok, (seed, proposed, seeds)
+    assert certified >= 40 and refused >= 20, (certified, refused)
