@@ -3,14 +3,15 @@
 Run from the repository root::
 
     python -m benchmarks.control [--quick] [--out benchmarks/results] [--starts 10] [--goals 2] [--random 5] [--jobs 1]
-                                 [--push-forward] [--standoff D]
+                                 [--push-forward] [--standoff D] [--no-crawl-guard]
 
 For each world (``simple``, ``office`` with all obstacles known, and random forest worlds from
 ``tests.worldgen`` with ``gap=0.3`` so that they stay forests in the robot's configuration
 space) and each random goal pose, the robot starts from random free poses and is driven by
-:func:`navigation.track` on an :class:`navigation.OrientedField` built on the obstacles grown by
-the robot radius, in :class:`service.sim.Simulator` (dt = 0.1 s, noise-free), for at most
-120 simulated seconds. A run *reaches* the goal pose when it is within 0.05 m and 0.1 rad.
+:class:`navigation.Tracker` (the controller of :func:`navigation.track` with the crawl guard,
+as the executive drives the robot; ``--no-crawl-guard``: :func:`navigation.track` alone) on an
+:class:`navigation.OrientedField` built on the obstacles grown by the robot radius, in
+:class:`service.sim.Simulator` (dt = 0.1 s, noise-free), for at most 120 simulated seconds. A run *reaches* the goal pose when it is within 0.05 m and 0.1 rad.
 
 Reported per world: success rate, collisions, minimum clearance (exact, robot disc to the true
 obstacles), mean path length and time to goal of the successful runs, and two oscillation
@@ -20,7 +21,8 @@ suite's chatter (:func:`benchmarks.methods.chatter`: sign flips of the executed 
 consecutive periods, both above 0.05 rad/s, per metre; a run is *flagged* above 1/m) with the
 count of flagged runs. ``--push-forward`` runs the controller with
 ``ControllerConfig(push_forward=True)`` and ``--standoff D`` with ``ControllerConfig(standoff=D)``
-(``--standoff 0``: the controller without the stand-off; docs/control.md). Also the median
+(``--standoff 0``: the controller without the stand-off; docs/control.md); the crawl guard
+then engages ``standoff=0.03`` only while the robot crawls. Also the median
 time of one controller step (field, Jacobian, command) with its target <= 2 ms.
 Results: ``<out>/control.json`` and ``<out>/control.md`` (also printed); progress on stderr.
 """
@@ -38,6 +40,7 @@ import numpy as np
 
 import navigation
 from navigation.control import ControllerConfig, track
+from navigation.tracker import CrawlConfig, Tracker
 from navigation.oriented import OrientedField, wrap_angle
 from service.sim import Simulator
 from benchmarks._common import log, machine_info, write_results
@@ -52,8 +55,9 @@ CHATTER_FLAG = 1.0  #: chatter per metre above which a run is flagged (as in ben
 
 
 
-def _episode(world, field, start, cfg) -> dict:
+def _episode(world, field, start, cfg, guard: bool = True) -> dict:
     sim = Simulator(world, seed=0, pose=start)
+    tracker = Tracker(cfg, CrawlConfig()) if guard else None
     omegas, step_times, poses = [], [], []
     reached = False
     for _ in range(int(MAX_TIME / sim.dt)):
@@ -62,7 +66,7 @@ def _episode(world, field, start, cfg) -> dict:
             reached = True
             break
         t0 = time.perf_counter()
-        cmd = track((x, y, th), field, cfg)
+        cmd = tracker.command(sim.time, (x, y, th), field) if guard else track((x, y, th), field, cfg)
         step_times.append(time.perf_counter() - t0)
         poses.append((x, y, th))
         result = sim.step((cmd.v, cmd.omega))
@@ -76,7 +80,8 @@ def _episode(world, field, start, cfg) -> dict:
     poses.append(tuple(sim.pose))
     return {"reached": reached, "collisions": len(m.collisions), "min_clearance": float(m.min_clearance),
             "distance": float(m.distance), "time": float(sim.time), "flips_per_m": flips / max(m.distance, 1e-9),
-            "curvature": float(curvature), "chatter": chatter(poses, sim.dt), "step_times": step_times}
+            "curvature": float(curvature), "chatter": chatter(poses, sim.dt), "step_times": step_times,
+            "engagements": tracker.guard.engagements if guard else 0}
 
 
 def _worlds(n_random: int):
@@ -87,9 +92,9 @@ def _worlds(n_random: int):
 
 
 def _world_row(job) -> dict:
-    """Closed-loop runs of one world: ``job = (name, world, starts, goals, push_forward, standoff)``
-    (``standoff=None``: the :class:`ControllerConfig` default)."""
-    name, world, starts, goals, push_forward, standoff = job
+    """Closed-loop runs of one world: ``job = (name, world, starts, goals, push_forward, standoff,
+    guard)`` (``standoff=None``: the :class:`ControllerConfig` default; ``guard``: the crawl guard)."""
+    name, world, starts, goals, push_forward, standoff, guard = job
     rng = np.random.default_rng(0)
     r = world.robot.radius
     extra = {} if standoff is None else {"standoff": standoff}
@@ -100,7 +105,7 @@ def _world_row(job) -> dict:
         field = OrientedField(navigation.NavigationFunction(world, goal=goal, inflation=r),
                               heading=rng.uniform(-math.pi, math.pi))
         for s in random_free_points(world, starts, rng, margin=r + 0.05):
-            e = _episode(world, field, (s[0], s[1], rng.uniform(-math.pi, math.pi)), cfg)
+            e = _episode(world, field, (s[0], s[1], rng.uniform(-math.pi, math.pi)), cfg, guard)
             times += e.pop("step_times")
             eps.append(e)
     ok = [e for e in eps if e["reached"]]
@@ -114,6 +119,7 @@ def _world_row(job) -> dict:
         "curvature": statistics.fmean(e["curvature"] for e in eps),
         "chatter": statistics.fmean(e["chatter"] for e in eps),
         "flagged": sum(e["chatter"] > CHATTER_FLAG for e in eps),
+        "engaged_runs": sum(e["engagements"] > 0 for e in eps),
         "step_median": statistics.median(times), "step_pass": statistics.median(times) <= STEP_TARGET,
     }
     log(f"[bench] {name}: {row['reached']}/{row['runs']} reached, {row['collisions']} collisions")
@@ -134,15 +140,16 @@ def _total(rows: list[dict]) -> dict:
             "mean_distance": mean("mean_distance", "reached"), "mean_time": mean("mean_time", "reached"),
             "flips_per_m": mean("flips_per_m", "runs"), "curvature": mean("curvature", "runs"),
             "chatter": mean("chatter", "runs"), "flagged": sum(r["flagged"] for r in rows),
+            "engaged_runs": sum(r.get("engaged_runs", 0) for r in rows),
             "step_median": statistics.median(r["step_median"] for r in rows),
             "step_pass": all(r["step_pass"] for r in rows)}
 
 
 def run(*, quick: bool = False, starts: int = 10, goals: int = 2, n_random: int = 5, jobs: int = 1,
-        push_forward: bool = False, standoff: float | None = None) -> dict:
+        push_forward: bool = False, standoff: float | None = None, crawl_guard: bool = True) -> dict:
     if quick:
         starts, goals, n_random = 2, 1, 0
-    work = [(name, world, starts, goals, push_forward, standoff) for name, world in _worlds(n_random)
+    work = [(name, world, starts, goals, push_forward, standoff, crawl_guard) for name, world in _worlds(n_random)
             if not quick or name == "simple"]
     if jobs > 1:
         from concurrent.futures import ProcessPoolExecutor
@@ -153,7 +160,8 @@ def run(*, quick: bool = False, starts: int = 10, goals: int = 2, n_random: int 
     rows.append(_total(rows))
     return {"benchmark": "control", "quick": quick,
             "settings": {"starts": starts, "goals": goals, "random": n_random, "push_forward": push_forward,
-                         "standoff": ControllerConfig().standoff if standoff is None else standoff},
+                         "standoff": ControllerConfig().standoff if standoff is None else standoff,
+                         "crawl_guard": crawl_guard},
             "tolerances": {"position": POS_TOL, "heading": HEADING_TOL, "max_time": MAX_TIME},
             "step_target": STEP_TARGET, "worlds": rows,
             "machine": machine_info()}
@@ -168,19 +176,23 @@ def render_markdown(result: dict) -> str:
     cmd = ("python -m benchmarks.control" + (" --quick" if result["quick"] else
                                              f" --starts {st['starts']} --goals {st['goals']} --random {st['random']}")
            + (" --push-forward" if st.get("push_forward") else "")
-           + (f" --standoff {st['standoff']:g}" if st.get("standoff") is not None else ""))
+           + (f" --standoff {st['standoff']:g}" if st.get("standoff") is not None else "")
+           + ("" if st.get("crawl_guard", True) else " --no-crawl-guard"))
     lines = ["# Closed-loop controller benchmark", "",
              f"`{cmd}` "
              f"(Python {result['machine']['python']}, {result['machine']['cpus']} CPUs). Goal pose reached: "
-             f"within {POS_TOL} m and {HEADING_TOL} rad; dt = 0.1 s; obstacles grown by the robot radius.", "",
+             f"within {POS_TOL} m and {HEADING_TOL} rad; dt = 0.1 s; obstacles grown by the robot radius; "
+             + ("crawl guard on (navigation.Tracker)." if st.get("crawl_guard", True) else "plain controller "
+                "(navigation.track, no crawl guard).") + " Guard: runs in which it engaged the stand-off.", "",
              "| world | obstacles | reached | collisions | min clearance (m) | mean path (m) | mean time (s) "
              "| turn-sign flips / m | integrated abs curvature (rad) | chatter / m | flagged (> 1/m) "
-             "| controller step (ms) | <= 2 ms |",
-             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|:---:|"]
+             "| guard | controller step (ms) | <= 2 ms |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|:---:|"]
     for r in result["worlds"]:
         lines.append(f"| {r['world']} | {_f(r['n_obstacles'], 'd')} | {r['reached']}/{r['runs']} | {r['collisions']} | "
                      f"{r['min_clearance']:.4f} | {_f(r['mean_distance'], '.2f')} | {_f(r['mean_time'], '.1f')} | "
                      f"{r['flips_per_m']:.2f} | {r['curvature']:.2f} | {r['chatter']:.2f} | {r['flagged']}/{r['runs']} | "
+                     f"{r.get('engaged_runs', 0)}/{r['runs']} | "
                      f"{r['step_median'] * 1e3:.2f} | "
                      f"{'PASS' if r['step_pass'] else 'FAIL'} |")
     return "\n".join(lines) + "\n"
@@ -199,11 +211,13 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="track the push-forward direction (ControllerConfig(push_forward=True))")
     parser.add_argument("--standoff", type=float, default=None,
                         help="ControllerConfig.standoff in m (0 turns the stand-off off; default: the config's)")
+    parser.add_argument("--no-crawl-guard", action="store_true",
+                        help="drive with navigation.track alone (no crawl guard, navigation.tracker)")
     args = parser.parse_args(argv)
     if args.starts < 1 or args.goals < 1 or args.random < 0 or args.jobs < 1:
         parser.error("--starts, --goals and --jobs must be >= 1 and --random >= 0")
     result = run(quick=args.quick, starts=args.starts, goals=args.goals, n_random=args.random, jobs=args.jobs,
-                 push_forward=args.push_forward, standoff=args.standoff)
+                 push_forward=args.push_forward, standoff=args.standoff, crawl_guard=not args.no_crawl_guard)
     write_results(args.out, "control", result, render_markdown(result))
     return 0
 

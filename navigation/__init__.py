@@ -12,7 +12,8 @@ Public entry points::
 and removed obstacles, incremental navigation-function updates, paper 001 section 4.2.2).
 ``navigation.OrientedField(nf, heading)`` is the oriented field of eq. 20-23 (arrival with a
 chosen heading); ``navigation.track`` / ``track_waypoints`` are the unicycle controller of
-eq. 24-25. Later layers own perception
+eq. 24-25; ``navigation.Tracker`` wraps them with the crawl guard (the controller's stand-off
+while the robot crawls). Later layers own perception
 (``perception``), missions (``tamp``) and the bus (``service``).
 """
 
@@ -31,11 +32,14 @@ from .geometry import Squircle
 from .online import OnlineWorld, WorldChange
 from .oriented import OrientedEval, OrientedField
 from .potential import NavEval, NavigationFunction, NavParams
+from .tracker import CrawlConfig, CrawlGuard, Tracker
 from .world import World, load_world
 
 __all__ = [
     "Command",
     "ControllerConfig",
+    "CrawlConfig",
+    "CrawlGuard",
     "DescentResult",
     "Forest",
     "ForestError",
@@ -50,6 +54,7 @@ __all__ = [
     "OutsideFreeSpaceError",
     "PointsError",
     "Squircle",
+    "Tracker",
     "World",
     "WorldChange",
     "WorldError",

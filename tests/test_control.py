@@ -21,15 +21,16 @@ from .worldgen import random_free_points
 POS_TOL, HEADING_TOL = 0.05, 0.1
 
 
-def run_closed_loop(world, field, start, cfg, max_steps=1500):
+def run_closed_loop(world, field, start, cfg, max_steps=1500, tracker=None):
     """Closed loop at dt = 0.1 s (noise-free), asserting finite commands within the limits and
-    no collision at every step. Returns (reached, simulator)."""
+    no collision at every step; ``tracker`` (a :class:`navigation.Tracker`) instead of
+    ``track(..., cfg)`` when given. Returns (reached, simulator)."""
     sim = Simulator(world, seed=0, pose=start)
     for _ in range(max_steps):
         x, y, th = sim.pose
         if math.hypot(x - field.goal[0], y - field.goal[1]) < POS_TOL and abs(wrap_angle(th - field.heading)) < HEADING_TOL:
             return True, sim
-        cmd = track((x, y, th), field, cfg)
+        cmd = tracker.command(sim.time, (x, y, th), field) if tracker is not None else track((x, y, th), field, cfg)
         assert math.isfinite(cmd.v) and math.isfinite(cmd.omega), cmd
         assert abs(cmd.v) <= cfg.v_max + 1e-12 and abs(cmd.omega) <= cfg.omega_max + 1e-12, cmd
         result = sim.step((cmd.v, cmd.omega))

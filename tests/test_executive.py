@@ -231,6 +231,15 @@ def test_detour_ratio_is_validated():
         ExecutiveConfig(detour_ratio=-1.0)
 
 
+def test_crawl_guard_option_is_validated_and_drives_a_mission():
+    from navigation import CrawlConfig
+
+    with pytest.raises(TampError, match="crawl_guard"):
+        ExecutiveConfig(crawl_guard=0.03)
+    r = run_mission(_gap_world(), max_time=200, config=ExecutiveConfig(crawl_guard=CrawlConfig()))
+    assert r["completed"] and r["collisions"] == 0 and r["bad_commands"] == 0
+
+
 # ---------------------------------------------------------------------- rotation weights
 def test_rotation_weights_are_refitted_from_traversed_edges():
     """Section 4.2.3 step III: with edges whose measured costs follow ``d + w . Q`` exactly, the

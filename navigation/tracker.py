@@ -1,0 +1,155 @@
+"""Closed-loop tracking with a crawl guard: the stand-off of eq. 24's controller only where needed.
+
+:func:`~navigation.control.track` is a pure function of the pose. Next to chained walls the
+navigation transformation is so anisotropic that the integral curves of the tracked field are
+squeezed into a trench a millimetre or two from a grown boundary, where the safety limit holds
+the robot at millimetres per second (docs/control.md, "Stand-off"): the default controller then
+*crawls* and may time out. The stand-off (``ControllerConfig.standoff``) removes most of those
+crawls but changes the motion everywhere near walls, and on ``office`` it recirculates along
+room walls that the default controller leaves at once.
+
+:class:`Tracker` keeps the default controller and turns the stand-off on only while the robot
+crawls. The one piece of state is :class:`CrawlGuard`: over the last ``window`` seconds the
+robot travelled less than ``min_progress`` metres while farther than ``goal_radius`` from the
+goal it tracks; the guard then engages the stand-off for ``hold`` seconds (re-engaging at once
+if the crawl goes on). The command of each step is still :func:`~navigation.control.track_waypoints`
+with either the caller's configuration or the same with ``standoff`` set, so every safety
+property of the controller holds in both modes (the safety limit is applied either way; the
+stand-off only changes the tracked direction near boundaries and lowers ``v``).
+
+Not in the paper: paper 001 tracks the field with eq. 24 alone. This is a supervisor around it
+for the conditioning problem of the transformation (issue 2, docs/navigation.md "Conditioning
+next to chained walls").
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .control import Command, ControllerConfig, track_waypoints
+from .errors import NavigationError
+from .oriented import OrientedField
+
+__all__ = ["CrawlConfig", "CrawlGuard", "Tracker"]
+
+
+@dataclass(frozen=True, slots=True)
+class CrawlConfig:
+    """When the crawl guard engages the stand-off.
+
+    Attributes
+    ----------
+    window : float
+        Seconds over which progress is measured (3).
+    min_progress : float
+        Path length (m) below which the robot crawls (0.1: 3.3 cm/s on average).
+    goal_radius : float
+        No crawl is declared within this distance (m) of the tracked goal, where eq. 24a slows
+        the robot down on purpose (0.25).
+    hold : float
+        Seconds the stand-off stays engaged (10).
+    max_gap : float
+        Longest interval (s) between two updates that still counts as one stretch of tracking
+        (0.5); after a longer one (the robot stopped for planning, a blocked mission) the
+        history starts over, so a pause is not taken for a crawl.
+    standoff : float
+        ``ControllerConfig.standoff`` used while engaged (0.03 m, the measured setting).
+    """
+
+    window: float = 3.0
+    min_progress: float = 0.1
+    goal_radius: float = 0.25
+    hold: float = 10.0
+    max_gap: float = 0.5
+    standoff: float = 0.03
+
+    def __post_init__(self):
+        for name in ("window", "min_progress", "goal_radius", "hold", "max_gap", "standoff"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0):
+                raise NavigationError(f"CrawlConfig.{name} must be a positive finite number, got {v!r}")
+
+
+class CrawlGuard:
+    """Crawl detection over a sliding window of positions (see the module doc).
+
+    ``update(t, q, goal)`` is called once per control period with the time (s), the position and
+    the tracked goal, and returns whether the stand-off is engaged for this period.
+    """
+
+    __slots__ = ("config", "_hist", "_length", "_until", "engagements")
+
+    def __init__(self, config: CrawlConfig = CrawlConfig()):
+        self.config = config
+        self._hist: deque = deque()  # (t, cumulative path length, x, y)
+        self._length = 0.0
+        self._until = -math.inf
+        self.engagements = 0  #: how often the stand-off was engaged
+
+    def reset(self) -> None:
+        """Forget the history (a new leg, a teleported robot)."""
+        self._hist.clear()
+        self._length = 0.0
+        self._until = -math.inf
+
+    @property
+    def engaged_until(self) -> float:
+        """Time until which the stand-off is engaged (``-inf``: never engaged since the reset)."""
+        return self._until
+
+    def update(self, t: float, q, goal) -> bool:
+        t = float(t)
+        x, y = float(q[0]), float(q[1])
+        if not (math.isfinite(t) and math.isfinite(x) and math.isfinite(y)):
+            raise NavigationError(f"CrawlGuard.update needs a finite time and position, got {t}, {q!r}")
+        h = self._hist
+        if h and not 0.0 <= t - h[-1][0] <= self.config.max_gap:
+            self.reset()  # time went back, or the robot was not under control meanwhile: start over
+        if h:
+            self._length += math.hypot(x - h[-1][2], y - h[-1][3])
+        h.append((t, self._length, x, y))
+        c = self.config
+        while len(h) > 1 and h[1][0] <= t - c.window:
+            h.popleft()  # keep one sample at or before the window's start
+        if t < self._until:
+            return True
+        full = t - h[0][0] >= c.window - 1e-9
+        if full and self._length - h[0][1] < c.min_progress and \
+                math.hypot(x - float(goal[0]), y - float(goal[1])) > c.goal_radius:
+            self._until = t + c.hold
+            self.engagements += 1
+            return True
+        return False
+
+
+class Tracker:
+    """Eq. 24-25 with the crawl guard: :func:`track_waypoints` with ``config``, or with
+    ``config`` and ``standoff = crawl.standoff`` while the guard is engaged.
+
+    ``crawl=None`` disables the guard (the commands of :func:`track_waypoints` with ``config``).
+    """
+
+    def __init__(self, config: ControllerConfig = ControllerConfig(), crawl: CrawlConfig | None = CrawlConfig()):
+        self.config = config
+        self.guard = CrawlGuard(crawl) if crawl is not None else None
+        self._engaged_config = replace(config, standoff=crawl.standoff) if crawl is not None else config
+        self._last = False
+
+    @property
+    def engaged(self) -> bool:
+        """Whether the last :meth:`command` used the stand-off."""
+        return self._last
+
+    def command(self, t: float, pose, current: OrientedField, following: OrientedField | None = None) -> Command:
+        """The command for ``pose = (x, y, theta)`` at time ``t`` (s) towards ``current``
+        (blended into ``following`` near ``current``'s goal, eq. 25)."""
+        p = np.asarray(pose, dtype=float).reshape(-1)
+        if p.shape != (3,) or not np.isfinite(p).all():
+            raise NavigationError(f"pose must be three finite numbers (x, y, theta), got {pose!r}")
+        on = self.guard is not None and self.guard.update(t, p[:2], current.goal)
+        self._last = on
+        return track_waypoints(p, current, following, self._engaged_config if on else self.config)

@@ -1,0 +1,117 @@
+"""The crawl guard (navigation.tracker): when it engages the controller's stand-off, and that the
+tracker's commands are the controller's with or without it."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+import navigation
+from navigation import CrawlConfig, CrawlGuard, Tracker
+from navigation.control import ControllerConfig, track_waypoints
+from navigation.errors import NavigationError
+from navigation.oriented import OrientedField
+
+from .conftest import shared_world
+from .test_control import run_closed_loop
+from .worldgen import random_forest_world, random_free_points
+
+DT = 0.1
+FAR = (10.0, 10.0)  # a goal far from every position used below
+
+
+def _feed(guard, positions, t0=0.0, goal=FAR):
+    return [guard.update(t0 + k * DT, q, goal) for k, q in enumerate(positions)]
+
+
+def test_a_robot_standing_still_engages_the_guard_after_the_window_for_hold_seconds():
+    cfg = CrawlConfig(window=3.0, hold=10.0)
+    g = CrawlGuard(cfg)
+    on = _feed(g, [(1.0, 1.0)] * 200)
+    first = on.index(True)
+    assert first == 30  # 3 s of samples at 0.1 s
+    assert all(on[first:first + 100])  # held for 10 s
+    assert g.engagements >= 1 and g.engaged_until > 0
+
+
+def test_a_moving_robot_or_one_near_its_goal_does_not_engage_it():
+    g = CrawlGuard(CrawlConfig())
+    assert not any(_feed(g, [(0.05 * k, 0.0) for k in range(200)]))  # 0.5 m/s
+    g = CrawlGuard(CrawlConfig())
+    assert not any(_feed(g, [(1.0, 1.0)] * 200, goal=(1.1, 1.0)))  # within goal_radius
+    g = CrawlGuard(CrawlConfig(min_progress=0.1))
+    # 4 cm/s: 0.12 m per 3 s window, just above the threshold
+    assert not any(_feed(g, [(0.004 * k, 0.0) for k in range(200)]))
+    g = CrawlGuard(CrawlConfig(min_progress=0.1))
+    assert any(_feed(g, [(0.002 * k, 0.0) for k in range(200)]))  # 2 cm/s crawls
+
+
+def test_a_pause_or_a_clock_reset_starts_the_history_over():
+    g = CrawlGuard(CrawlConfig(window=3.0))
+    assert not any(_feed(g, [(1.0, 1.0)] * 20))  # 2 s of standing
+    # the robot was not tracked for 5 s (planning): 2 more seconds must not complete a window
+    assert not any(_feed(g, [(1.0, 1.0)] * 20, t0=7.0))
+    g.reset()
+    assert not any(_feed(g, [(1.0, 1.0)] * 25, t0=100.0))
+    assert not any(_feed(g, [(1.0, 1.0)] * 25, t0=0.0))  # time went back
+
+
+@pytest.mark.parametrize("bad", [{"window": 0.0}, {"hold": -1.0}, {"min_progress": math.nan}, {"standoff": True},
+                                 {"max_gap": math.inf}])
+def test_bad_crawl_config_is_refused(bad):
+    with pytest.raises(NavigationError):
+        CrawlConfig(**bad)
+
+
+def test_non_finite_input_is_refused():
+    g = CrawlGuard()
+    with pytest.raises(NavigationError):
+        g.update(0.0, (math.nan, 0.0), FAR)
+    t = Tracker()
+    world = shared_world("simple")
+    field = OrientedField(navigation.NavigationFunction(world, goal=(3.0, 2.0), inflation=world.robot.radius), 0.0)
+    with pytest.raises(NavigationError):
+        t.command(0.0, (1.0, math.inf, 0.0), field)
+
+
+def test_tracker_commands_are_the_controllers_with_and_without_the_stand_off():
+    world = shared_world("office")
+    r = world.robot.radius
+    cfg = ControllerConfig.from_robot(world.robot)
+    rng = np.random.default_rng(3)
+    goal = random_free_points(world, 1, rng, margin=r + 0.2)[0]
+    field = OrientedField(navigation.NavigationFunction(world, goal=goal, inflation=r), heading=0.3)
+    plain = Tracker(cfg, crawl=None)
+    guarded = Tracker(cfg, CrawlConfig(window=1.0, hold=2.0, standoff=0.04))
+    on_cfg = replace(cfg, standoff=0.04)
+    q = random_free_points(world, 1, rng, margin=r + 0.05)[0]
+    seen = set()
+    for k in range(40):  # the robot stands still at q: the guard engages after 1 s
+        pose = (q[0], q[1], 0.1 * k)
+        assert plain.command(k * DT, pose, field) == track_waypoints(pose, field, None, cfg)
+        cmd = guarded.command(k * DT, pose, field)
+        assert cmd == track_waypoints(pose, field, None, on_cfg if guarded.engaged else cfg)
+        seen.add(guarded.engaged)
+    assert seen == {True, False}
+
+
+def test_the_guard_rescues_a_run_that_crawls_with_the_plain_controller():
+    """random12_seed4, start 1 of the closed-loop benchmark's sampling: the plain controller
+    crawls in a trench along a chained wall and times out after 120 s; with the guard the robot
+    reaches the goal pose, touching nothing."""
+    world = random_forest_world(4, gap=0.3)
+    r = world.robot.radius
+    field = OrientedField(navigation.NavigationFunction(world, goal=(4.066351196001362, 4.563777886388609),
+                                                        inflation=r), heading=-2.3589923559454644)
+    start = (2.0644817134044633, 4.090604854854552, -0.30103502123228365)
+    cfg = ControllerConfig.from_robot(world.robot)
+    reached, _ = run_closed_loop(world, field, start, cfg, max_steps=1200)
+    assert not reached  # the failure the guard is for (if the field improves, pick another case)
+    tracker = Tracker(cfg)
+    reached, sim = run_closed_loop(world, field, start, cfg, max_steps=1200, tracker=tracker)
+    assert reached, f"ended at {sim.pose} after {sim.time:.1f} s"
+    assert tracker.guard.engagements >= 1
+    assert sim.metrics.min_clearance > 0.0 and not sim.metrics.collisions
