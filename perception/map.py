@@ -985,6 +985,93 @@ class ObstacleMap:
             return True
         return float(self._ws_tree.query(pts)[0].min()) - self._ws_spacing - sp > need
 
+    def _ws_crossing(self, sq: Squircle, deep: float) -> bool:
+        """``sq`` provably crosses the boundary of the workspace shrunk by the radius once (one
+        arc of its boundary outside, long enough that the construction's 256 samples find it
+        and its complement) near the middle of a face, and a point of ``sq`` deeper than
+        ``deep`` in it lies farther than ``deep`` outside the workspace.
+
+        In the frame of that face (``y`` along its outward normal, the workspace ``W`` inside
+        the rectangle ``|y| <= Y``): the bottom corners of the rectangle of ``sq`` lie in ``W``,
+        so by convexity ``W`` meets the rectangle in ``y <= psi(x)`` with ``psi`` concave; below
+        ``Y_lo = min(psi(x0), psi(x1))`` the boundary of ``sq`` is inside ``W``, above ``Y``
+        outside; between the two it runs along two legs, one on each side, on which
+        ``y - psi(x(y))`` increases (slope ``>= 1 - |psi'| |dx/dy| > 0``: ``|psi'|`` is largest at
+        ``x0`` or ``x1``, ``psi`` being concave, and ``|dx/dy|`` at the ends of a leg, the normal of
+        a convex curve turning monotonically), so each leg crosses once."""
+        ws = self.cspace_workspace
+        cw = np.asarray(ws.center, dtype=float)
+        ct, st = math.cos(ws.theta), math.sin(ws.theta)
+        du, dv = sq.center[0] - cw[0], sq.center[1] - cw[1]
+        cu, cv = du * ct + dv * st, dv * ct - du * st
+        if abs(cv) / ws.height >= abs(cu) / ws.width:  # top or bottom face
+            ey = np.array([-st, ct]) * (1.0 if cv >= 0 else -1.0)
+            ex = np.array([ct, st])
+            Y = ws.height / 2
+        else:
+            ey = np.array([ct, st]) * (1.0 if cu >= 0 else -1.0)
+            ex = np.array([-st, ct])
+            Y = ws.width / 2
+        M = np.stack((ex, ey))  # world offsets -> face frame
+
+        def world(x, y):
+            return cw + np.outer(x, ex) + np.outer(y, ey)
+
+        pts = (_samples(sq) - cw) @ M.T
+        top, bot = pts[int(np.argmax(pts[:, 1]))], pts[int(np.argmin(pts[:, 1]))]
+        c, sn = math.cos(sq.theta), math.sin(sq.theta)
+        hw, hh = sq.width / 2, sq.height / 2
+        rect = (np.array([[sq.center[0] + a * hw * c - b * hh * sn, sq.center[1] + a * hw * sn + b * hh * c]
+                          for a, b in ((1, 1), (-1, 1), (-1, -1), (1, -1))]) - cw) @ M.T
+        x0, x1, y0 = float(rect[:, 0].min()), float(rect[:, 0].max()), float(rect[:, 1].min())
+        # the construction's samples are about perimeter / 256 apart (perimeter <= 2 (w + h))
+        arc = 4.0 * 2.0 * (sq.width + sq.height) / 256
+        if top[1] - Y <= max(deep, arc / 2) or y0 >= Y:
+            return False
+        if not bool(np.all(gauge(ws, world(np.array([x0, x1]), np.array([y0, y0]))) < 1.0)):
+            return False
+
+        def bisect(inside, outside, g):
+            """Points of ``g``'s boundary between ``inside`` (g < 1) and ``outside`` (g >= 1), (K, 2)
+            face-frame arrays: ``(lo, mid)``, the last point inside and the midpoint."""
+            lo, hi = inside.copy(), outside.copy()
+            for _ in range(48):
+                mid = 0.5 * (lo + hi)
+                ins = g(mid) < 1.0
+                lo[ins], hi[~ins] = mid[ins], mid[~ins]
+            return lo, 0.5 * (lo + hi)
+
+        gw = lambda P: gauge(ws, world(P[:, 0], P[:, 1]))  # noqa: E731
+        ge = lambda P: gauge(sq, world(P[:, 0], P[:, 1]))  # noqa: E731
+        lo, psi = bisect(np.array([[x0, y0], [x1, y0]]), np.array([[x0, Y + 1e-6], [x1, Y + 1e-6]]), gw)
+        y_lo = float(lo[:, 1].min())
+        if y_lo - bot[1] <= arc / 2:
+            return False
+        grad = ws.gradient(world(psi[:, 0], psi[:, 1])) @ M.T
+        if not bool(np.all(grad[:, 1] > 0)):
+            return False
+        kappa = float(np.max(np.abs(grad[:, 0]) / grad[:, 1]))  # |psi'| at x0 and x1
+        # the legs' ends: boundary points of ``sq`` at heights y_lo and Y, left and right of the
+        # chord from its bottom to its top sample (inside ``sq``)
+        hs = np.array([y_lo, Y, y_lo, Y])
+        t = (hs - bot[1]) / (top[1] - bot[1])
+        mid = bot + t[:, None] * (top - bot)
+        if not bool(np.all(ge(mid) < 1.0)):
+            return False
+        far = np.stack((np.array([x0 - 1e-3, x0 - 1e-3, x1 + 1e-3, x1 + 1e-3]), hs), axis=1)
+        _, ends = bisect(mid, far, ge)
+        n = sq.gradient(world(ends[:, 0], ends[:, 1])) @ M.T
+        if not bool(np.all(np.abs(n[:, 0]) > 1e-12)):
+            return False
+        slope = float(np.max(np.abs(n[:, 1] / n[:, 0])))  # |dx/dy| at the ends of the legs
+        if kappa * slope > 0.5:
+            return False
+        # a point deep in ``sq`` and beyond the face (W lies in |y| <= Y): on the chord
+        cand = bot + ((Y + np.array([0.25, 0.5, 0.75]) * (top[1] - Y) - bot[1]) / (top[1] - bot[1]))[:, None] * (top - bot)
+        depth = np.minimum(_polygon_depth(_samples(sq) - cw, (cand[:, 0:1] * ex + cand[:, 1:2] * ey)),
+                           cand[:, 1] - Y)
+        return float(depth.max()) > deep
+
     def _certified(self, proposed: dict, seeds: set, sub: list[int]) -> bool:
         """True when the forest check of ``sub`` (the changed estimates ``seeds`` and the
         estimates near them) provably passes, so that it need not run.
@@ -1036,8 +1123,12 @@ class ObstacleMap:
 
         in_sub = set(sub)
         for i in seeds:
-            if not self._ws_inside(proposed[i].inflated, gap):
-                return False  # crossing or near the boundary: the construction decides
+            E = proposed[i].inflated
+            if not self._ws_inside(E, gap):
+                if not self._ws_crossing(E, deep):
+                    return False  # near the boundary, or a crossing not certain: the construction decides
+                if not link(i, W):
+                    return False
         for i in sub:
             if i not in seeds and not self._ws_inside(proposed[i].inflated, 0.0) and not link(i, W):
                 return False

@@ -215,6 +215,13 @@ def test_forest_certificate_applies_to_isolated_and_leaf_changes():
     proposed = {0: est(0, (c[0] - 1.0, c[1]), 1.0, 0.3), 1: est(1, (c[0], c[1]), 1.4, 0.3),
                 2: est(2, (c[0] + 1.0, c[1]), 1.0, 0.3)}
     assert omap._certified(proposed, {1}, [0, 1, 2]) and _forest_passes(omap, proposed, [0, 1, 2])
+    # a wall crossing the workspace boundary once, near the middle of a face, and a changed
+    # piece overlapping it inside (a chain from the boundary)
+    top = c[1] + omap.cspace_workspace.height / 2
+    wall = {0: est(0, (c[0], top), 0.3, 0.6)}
+    assert omap._certified(wall, {0}, [0]) and _forest_passes(omap, wall, [0])
+    chain = {0: est(0, (c[0] + 1.0, top), 0.3, 0.6, 0.2), 1: est(1, (c[0] + 1.0, top - 0.6), 0.3, 0.9)}
+    assert omap._certified(chain, {0, 1}, [0, 1]) and _forest_passes(omap, chain, [0, 1])
     # and the map counts the certified checks separately
     n = omap.stats["forest_checks"]
     assert omap._validate(proposed, {1})[0] is None
@@ -243,9 +250,14 @@ def test_forest_certificate_declines_what_it_cannot_prove():
     # 5 mm apart (accepted with min_gap = 1 mm, not certain to the margin)
     gap = {0: est(0, (c[0] - 0.5025, c[1]), 1.0, 0.3), 1: est(1, (c[0] + 0.5025, c[1]), 1.0, 0.3)}
     assert not omap._certified(gap, {1}, [0, 1]) and _forest_passes(omap, gap, [0, 1])
-    # a changed wall crossing the workspace boundary: the construction decides
-    wall = {0: est(0, (c[0], top), 0.3, 0.6)}
-    assert not omap._certified(wall, {0}, [0]) and _forest_passes(omap, wall, [0])
+    # a changed wall lying along the boundary (its inner face nearly on it: several crossings
+    # cannot be excluded), one crossing the boundary near a corner of the workspace, one
+    # barely crossing: the construction decides
+    along = {0: est(0, (c[0], top + 0.1), 2.0, 0.2)}
+    corner = {0: est(0, (c[0] + ws.width / 2 - 0.05, top - 0.05), 0.4, 0.4, 0.7)}
+    barely = {0: est(0, (c[0], top - 0.29), 0.3, 0.6)}
+    for m in (along, corner, barely):
+        assert not omap._certified(m, {0}, [0])
 
 
 @pytest.mark.parametrize("seed", range(2))
@@ -263,8 +275,12 @@ def test_forest_certificate_is_sound_on_random_maps(seed):
     lo = np.asarray(ws.center) - [ws.width / 2, ws.height / 2]
 
     def rand(i, near=None):
-        ctr = tuple(lo + rng.uniform(0.0, 1.0, 2) * [ws.width, ws.height]) if near is None else \
-            tuple(np.asarray(near.center) + rng.normal(0.0, 0.5, 2))
+        if near is not None:
+            ctr = tuple(np.asarray(near.center) + rng.normal(0.0, 0.5, 2))
+        elif rng.uniform() < 0.5:  # on the boundary (walls crossing it)
+            ctr = tuple(ws.boundary_points(256)[int(rng.integers(256))] + rng.normal(0.0, 0.15, 2))
+        else:
+            ctr = tuple(lo + rng.uniform(0.0, 1.0, 2) * [ws.width, ws.height])
         sq = Squircle(ctr, rng.uniform(0.1, 1.5), rng.uniform(0.1, 0.6), rng.uniform(-3, 3), rng.uniform(0.1, 0.99))
         return Estimate(i, sq, sq, i)
 
@@ -285,3 +301,26 @@ def test_forest_certificate_is_sound_on_random_maps(seed):
             certified += 1
             assert ok, (seed, proposed, seeds)
     assert certified >= 40 and refused >= 20, (certified, refused)
+
+
+def test_forest_certificate_crossing_is_sound():
+    """Random single estimates around the workspace boundary (walls of every size, angle and
+    curvature, near faces and corners): whenever the crossing certificate holds, the
+    construction accepts the estimate as a child of the workspace."""
+    from navigation.forest import build_forest, WORKSPACE
+    from navigation.geometry import Squircle
+
+    omap, _ = _cert_map()
+    ws = omap.cspace_workspace
+    cfg = omap.config
+    rng = np.random.default_rng(5)
+    bp = ws.boundary_points(512)
+    certified = 0
+    for _ in range(300):
+        ctr = tuple(bp[int(rng.integers(len(bp)))] + rng.normal(0.0, 0.2, 2))
+        sq = Squircle(ctr, rng.uniform(0.1, 2.5), rng.uniform(0.1, 0.8), rng.uniform(-3, 3), rng.uniform(0.0, 0.99))
+        if omap._ws_crossing(sq, cfg.min_overlap + 0.01):
+            certified += 1
+            f = build_forest(ws, [sq], min_gap=cfg.min_gap, min_overlap=cfg.min_overlap)
+            assert f.parent == (WORKSPACE,) and f.center_depth[0] >= cfg.min_overlap, sq
+    assert certified >= 30, certified
