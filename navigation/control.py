@@ -125,7 +125,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .errors import NavigationError
+from .errors import NavigationError, check_numbers
 from .oriented import BoundaryFrame, OrientedField, wrap_angle
 
 __all__ = ["ControllerConfig", "Command", "track", "track_waypoints", "switch_weight", "SAFETY_HORIZON"]
@@ -182,17 +182,9 @@ class ControllerConfig:
     standoff_gate: float = 0.0
 
     def __post_init__(self):
-        for name in ("k_v", "k_omega", "v_max", "omega_max", "k_switch", "switch_margin"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise NavigationError(f"ControllerConfig.{name} must be a positive finite number, got {value!r}")
-        for name in ("safety_horizon", "boundary_blend", "standoff", "standoff_push", "standoff_gate"):
-            h = getattr(self, name)
-            if not (isinstance(h, (int, float)) and math.isfinite(h) and h >= 0):
-                raise NavigationError(f"ControllerConfig.{name} must be a finite number >= 0, got {h!r}")
-        h = self.safety_horizon
-        if not (isinstance(h, (int, float)) and math.isfinite(h) and h >= 0):
-            raise NavigationError(f"ControllerConfig.safety_horizon must be a finite number >= 0, got {h!r}")
+        check_numbers(self, ("k_v", "k_omega", "v_max", "omega_max", "k_switch", "switch_margin"), positive=True)
+        check_numbers(self, ("safety_horizon", "boundary_blend", "standoff", "standoff_push", "standoff_gate"),
+                      positive=False)
 
     @classmethod
     def from_robot(cls, robot, **overrides) -> "ControllerConfig":

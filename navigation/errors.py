@@ -8,7 +8,10 @@ so ordinary Python code that expects those keeps working.
 
 from __future__ import annotations
 
+import math
+
 __all__ = [
+    "check_numbers",
     "HarmonicTampError",
     "NavigationError",
     "WorldError",
@@ -83,3 +86,15 @@ class TampError(HarmonicTampError):
 
 class ServiceError(HarmonicTampError):
     """The running service cannot honour a request."""
+
+
+def check_numbers(obj, names, *, positive: bool, error: type = None) -> None:
+    """Raise ``error`` (default :class:`NavigationError`) naming ``<Class>.<name>`` unless each
+    attribute ``name`` of the config object ``obj`` is a finite real number (booleans refused),
+    ``> 0`` when ``positive``, else ``>= 0``."""
+    for name in names:
+        v = getattr(obj, name)
+        ok = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and (v > 0 if positive else v >= 0)
+        if not ok:
+            what = "a positive finite number" if positive else "a finite number >= 0"
+            raise (error or NavigationError)(f"{type(obj).__name__}.{name} must be {what}, got {v!r}")

@@ -64,7 +64,7 @@ import numpy as np
 
 from ._arrays import as_points, restore
 from ._jet import Jet, logistic
-from .errors import NavigationError, OutsideFreeSpaceError
+from .errors import NavigationError, OutsideFreeSpaceError, check_numbers
 from .forest import WORKSPACE, Forest
 from .geometry import pack
 from .transforms import Chain, PurgeStage, SphereToPoint, StarToSphere, jets_to_arrays
@@ -98,10 +98,8 @@ class NavParams:
     delta: tuple = ()
 
     def __post_init__(self):
-        for name in ("K", "mu", "width_fraction", "rho_fraction", "width_cap", "workspace_fraction"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise NavigationError(f"NavParams.{name} must be a positive finite number, got {v!r}")
+        check_numbers(self, ("K", "mu", "width_fraction", "rho_fraction", "width_cap", "workspace_fraction"),
+                      positive=True)
         if not self.width_fraction < 0.5:
             raise NavigationError(f"NavParams.width_fraction must be < 0.5 so shells never meet, "
                                   f"got {self.width_fraction}")

@@ -31,7 +31,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .control import Command, ControllerConfig, track_waypoints
-from .errors import NavigationError
+from .errors import NavigationError, check_numbers
 from .oriented import OrientedField
 
 __all__ = ["CrawlConfig", "CrawlGuard", "Tracker"]
@@ -68,10 +68,7 @@ class CrawlConfig:
     standoff: float = 0.03
 
     def __post_init__(self):
-        for name in ("window", "min_progress", "goal_radius", "hold", "max_gap", "standoff"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0):
-                raise NavigationError(f"CrawlConfig.{name} must be a positive finite number, got {v!r}")
+        check_numbers(self, ("window", "min_progress", "goal_radius", "hold", "max_gap", "standoff"), positive=True)
 
 
 class CrawlGuard:

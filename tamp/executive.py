@@ -100,7 +100,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from navigation.control import ControllerConfig, switch_weight, track_waypoints
-from navigation.errors import ForestError, NavigationError, TampError, WorldError
+from navigation.errors import ForestError, NavigationError, TampError, WorldError, check_numbers
 from navigation.forest import build_forest
 from navigation.geometry import Squircle, beta_rows, pack
 from navigation.oriented import OrientedField
@@ -242,10 +242,8 @@ class ExecutiveConfig:
     crawl_guard: CrawlConfig | None = None
 
     def __post_init__(self):
-        for name in ("buffer", "fallback_buffer", "check_margin", "blocked_timeout", "detour_ratio"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-                raise TampError(f"ExecutiveConfig.{name} must be a finite number >= 0, got {v!r}")
+        check_numbers(self, ("buffer", "fallback_buffer", "check_margin", "blocked_timeout", "detour_ratio"),
+                      positive=False, error=TampError)
         if not (isinstance(self.waypoint_tolerance, (int, float)) and self.waypoint_tolerance > 0):
             raise TampError(f"ExecutiveConfig.waypoint_tolerance must be > 0, got {self.waypoint_tolerance!r}")
         for name in ("rebuild_after", "n_orient", "n_headings", "max_plan_rounds", "stall_ticks", "refit_min_edges"):
