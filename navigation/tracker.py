@@ -28,9 +28,8 @@ import math
 from collections import deque
 from dataclasses import dataclass, replace
 
-import numpy as np
 
-from .control import Command, ControllerConfig, track_waypoints
+from .control import Command, ControllerConfig, _pose, track_waypoints
 from .errors import NavigationError, check_numbers
 from .oriented import OrientedField
 
@@ -144,9 +143,7 @@ class Tracker:
     def command(self, t: float, pose, current: OrientedField, following: OrientedField | None = None) -> Command:
         """The command for ``pose = (x, y, theta)`` at time ``t`` (s) towards ``current``
         (blended into ``following`` near ``current``'s goal, eq. 25)."""
-        p = np.asarray(pose, dtype=float).reshape(-1)
-        if p.shape != (3,) or not np.isfinite(p).all():
-            raise NavigationError(f"pose must be three finite numbers (x, y, theta), got {pose!r}")
-        on = self.guard is not None and self.guard.update(t, p[:2], current.goal)
+        q, _ = _pose(pose)  # the controller's pose check, before the guard records the position
+        on = self.guard is not None and self.guard.update(t, q, current.goal)
         self._last = on
-        return track_waypoints(p, current, following, self._engaged_config if on else self.config)
+        return track_waypoints(pose, current, following, self._engaged_config if on else self.config)

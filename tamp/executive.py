@@ -99,13 +99,13 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from navigation.control import ControllerConfig, switch_weight, track_waypoints
+from navigation.control import ControllerConfig, switch_weight
 from navigation.errors import ForestError, NavigationError, TampError, WorldError, check_numbers
 from navigation.forest import build_forest
 from navigation.geometry import Squircle, beta_rows, pack
 from navigation.oriented import OrientedField
 from navigation.potential import NavigationFunction
-from navigation.tracker import CrawlConfig, CrawlGuard
+from navigation.tracker import CrawlConfig, Tracker
 from navigation.world import Region, World, configuration_space, disc_violations
 from perception.errors import ScanError
 from perception.fit import inflate
@@ -427,9 +427,8 @@ class Executive:
         self.config = cfg = config or ExecutiveConfig()
         self.radius = r = float(world.robot.radius)
         self.control = ControllerConfig.from_robot(world.robot)
-        self._guard = CrawlGuard(cfg.crawl_guard) if cfg.crawl_guard is not None else None
-        self._control_standoff = (replace(self.control, standoff=cfg.crawl_guard.standoff)
-                                  if cfg.crawl_guard is not None else self.control)
+        # eq. 24-25, with the crawl guard when configured (navigation.tracker)
+        self._tracker = Tracker(self.control, cfg.crawl_guard)
         self.cspace_workspace, _ = configuration_space(world.workspace, (), r)
         self.messages: list[str] = []
         self.message = ""
@@ -1109,9 +1108,8 @@ class Executive:
         if self.wp + 1 < len(self.leg) and switch_weight(float(np.linalg.norm(q - cur.goal)), self.control) > 0.0:
             fol = self._field(self.leg[self.wp + 1])
         # crawl guard: the stand-off while the robot crawls (navigation.tracker)
-        crawling = self._guard is not None and self._guard.update(self.time, q, cur.goal)
         try:
-            cmd = track_waypoints(p, cur, fol, self._control_standoff if crawling else self.control)
+            cmd = self._tracker.command(self.time, p, cur, fol)
         except NavigationError as err:
             self._note(f"controller refused the pose: {err}")
             return 0.0, 0.0
