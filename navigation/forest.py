@@ -80,6 +80,7 @@ import networkx as nx
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ._geom_kernel import gap_bound_rows
 from ._memo import Memo
 from .errors import ForestError
 from .geometry import (COS, CX, CY, HH, HW, S, SIN, Squircle, beta_gradient_rows, boundary_jet_rows,
@@ -444,52 +445,20 @@ def _gap_bound_rows(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     among their four edge directions, otherwise the smallest corner-to-edge distance) and the
     gap between the discs both bound the squircles' distance from below; the larger is
     returned (the rectangle is tight for the near-rectangular squircles of walls, the disc for
-    round ones).
+    round ones). Compiled: :func:`navigation._geom_kernel.gap_bound_rows`.
     """
-    ca, cb = _corners(A), _corners(B)  # (E, 4, 2)
-    d = B[:, [CX, CY]] - A[:, [CX, CY]]
-    axes = (np.stack((A[:, COS], A[:, SIN]), 1), np.stack((-A[:, SIN], A[:, COS]), 1),
-            np.stack((B[:, COS], B[:, SIN]), 1), np.stack((-B[:, SIN], B[:, COS]), 1))
-    sep = np.zeros(len(A), bool)
-    for n in axes:  # separating-axis test: projections of both rectangles on n
-        ra = A[:, HW] * np.abs(n[:, 0] * A[:, COS] + n[:, 1] * A[:, SIN]) + \
-            A[:, HH] * np.abs(-n[:, 0] * A[:, SIN] + n[:, 1] * A[:, COS])
-        rb = B[:, HW] * np.abs(n[:, 0] * B[:, COS] + n[:, 1] * B[:, SIN]) + \
-            B[:, HH] * np.abs(-n[:, 0] * B[:, SIN] + n[:, 1] * B[:, COS])
-        sep |= np.abs((n * d).sum(-1)) > ra + rb
-
-    def corner_edge(p: np.ndarray, q: np.ndarray) -> np.ndarray:
-        """Smallest distance from the corners of ``p`` to the edges of ``q`` (rows)."""
-        a = q[:, None, :, :]
-        e = np.roll(q, -1, axis=1)[:, None, :, :] - a  # (E, 1, 4 edges, 2)
-        v = p[:, :, None, :] - a  # (E, 4 corners, 4 edges, 2)
-        tt = np.clip((v * e).sum(-1) / (e * e).sum(-1), 0.0, 1.0)
-        return np.linalg.norm(v - tt[..., None] * e, axis=-1).min(axis=(1, 2))
-
-    rect = np.where(sep, np.minimum(corner_edge(ca, cb), corner_edge(cb, ca)), 0.0)
-    disc = np.hypot(d[:, 0], d[:, 1]) - np.hypot(A[:, HW], A[:, HH]) - np.hypot(B[:, HW], B[:, HH])
-    return np.maximum(np.maximum(rect, disc), 0.0)
+    return gap_bound_rows(A, B)
 
 
-def _gap_bounds(P: np.ndarray, squircles: Sequence[Squircle] | None = None) -> np.ndarray:
+def _gap_bounds(P: np.ndarray) -> np.ndarray:
     """:func:`_gap_bound_rows` of every pair of rows ``P (K, 7)`` as a symmetric ``(K, K)``
-    matrix (diagonal 0); with ``squircles`` (the rows' squircles) memoised per pair."""
+    matrix (diagonal 0). Not memoised: the compiled bound of all 190 pairs of 20 obstacles
+    costs less than looking them up."""
     K = len(P)
     out = np.zeros((K, K))
     I, J = np.triu_indices(K, 1)
-    if I.size == 0:
-        return out
-    if squircles is None:
-        v = _gap_bound_rows(P[I], P[J])
-    else:
-        keys = [("gb", squircles[i], squircles[j]) for i, j in zip(I, J)]
-        v = np.array([_PAIRS.get(k) for k in keys], dtype=float)  # None -> nan
-        todo = np.nonzero(np.isnan(v))[0]
-        if todo.size:
-            v[todo] = _gap_bound_rows(P[I[todo]], P[J[todo]])
-            for t in todo:
-                _PAIRS.put(keys[t], float(v[t]))
-    out[I, J] = out[J, I] = v
+    if I.size:
+        out[I, J] = out[J, I] = _gap_bound_rows(P[I], P[J])
     return out
 
 
@@ -1369,7 +1338,7 @@ def _build(workspace, obstacles, min_gap, min_overlap, *, full: bool) -> Forest 
 
     # --- distances: lower bounds for every pair, exact where a rule needs them
     rows = np.stack([bodies[k].row for k in keep]) if m else np.zeros((0, 7))
-    bound = _gap_bounds(rows, [obstacles[k] for k in keep])
+    bound = _gap_bounds(rows)
     exact = np.zeros((m, m), bool)
     edge_set = set(edges)
     for a, b in edges:

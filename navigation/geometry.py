@@ -34,6 +34,7 @@ from dataclasses import field as dc_field
 import numpy as np
 from scipy.special import ellipe, ellipk
 
+from . import _geom_kernel
 from ._arrays import as_points, restore
 from ._jet import Jet
 from .errors import WorldError
@@ -585,24 +586,9 @@ def signed_distance_rows(P: np.ndarray, q: np.ndarray, n: int = 128, stages: int
     longest arc of the smallest sampled distance is a candidate; each is refined over its
     bracket (:func:`_refine_brackets`). Arcs turning by more than 84 degrees make every discrete
     local minimum a candidate. The error is below 1e-9 m (tested against a dense brute force).
+    Compiled: :func:`navigation._geom_kernel.signed_distance_rows`, point by point.
     """
-    q = np.asarray(q, dtype=float).reshape(-1, 2)
-    P = np.asarray(P, dtype=float).reshape(-1, 7)
-    if len(q) == 0:
-        return np.empty(0)
-    psi = np.linspace(0.0, 2.0 * math.pi, n, endpoint=False)
-    bx, by = _point_xy_rows(P, np.broadcast_to(psi, (len(P), n)))
-    ex, ey = np.roll(bx, -1, axis=1) - bx, np.roll(by, -1, axis=1) - by  # chord k -> k + 1
-    chord = np.hypot(ex, ey)
-    # cos of the angle between chords k - 1 and k + 1
-    cos = (np.roll(ex, 1, axis=1) * np.roll(ex, -1, axis=1) + np.roll(ey, 1, axis=1) * np.roll(ey, -1, axis=1)) / \
-        np.maximum(np.roll(chord, 1, axis=1) * np.roll(chord, -1, axis=1), 1e-300)
-    arc = np.where(cos > 0.1, chord / np.maximum(cos, 0.1), np.inf)
-    half = 0.5 * arc.max(axis=1)
-    d2 = (bx - q[:, 0, None]) ** 2 + (by - q[:, 1, None]) ** 2
-    r, k = _candidates(d2, half)
-    lo, hi = _brackets(np.broadcast_to(psi, (len(k), n)), k)
-    return _signed(P, q, r, _refine_brackets(P[r], q[r], lo, hi, stages, m))
+    return _geom_kernel.signed_distance_rows(P, q, n, stages, m)
 
 
 @functools.lru_cache(maxsize=4096)
@@ -690,36 +676,6 @@ def beta_jet(p: np.ndarray, x: Jet, y: Jet) -> Jet:
     return (r2 + root) * 0.5 - 1.0
 
 
-def _ray_frame(p: np.ndarray, o: np.ndarray, d: np.ndarray):
-    """Rays ``o + r d`` in the normalised frames of rows ``p``: ``(x0, y0, ax, ay)`` with
-    ``(x, y)(r) = (x0 + r ax, y0 + r ay)``."""
-    c, sn = p[:, COS], p[:, SIN]
-    ihw, ihh = 1.0 / p[:, HW], 1.0 / p[:, HH]
-    dx, dy = o[:, 0] - p[:, CX], o[:, 1] - p[:, CY]
-    x0 = (dx * c + dy * sn) * ihw
-    y0 = (dy * c - dx * sn) * ihh
-    ax = (d[:, 0] * c + d[:, 1] * sn) * ihw
-    ay = (d[:, 1] * c - d[:, 0] * sn) * ihh
-    return x0, y0, ax, ay
-
-
-def _rectangle_crossing(x0, y0, ax, ay, entry: np.ndarray) -> np.ndarray:
-    """Where rays (normalised frame, :func:`_ray_frame`) cross the bounding rectangle of their
-    squircle, ``[-1, 1]^2`` (exit, or entry where ``entry``).
-
-    The rectangle contains the squircle, so its exit point lies beyond the squircle's exit and
-    its entry point before the squircle's entry: safe starting points for monotone Newton.
-    """
-    with np.errstate(divide="ignore", invalid="ignore"):
-        tx1, tx2 = (-1.0 - x0) / ax, (1.0 - x0) / ax
-        ty1, ty2 = (-1.0 - y0) / ay, (1.0 - y0) / ay
-    tx_lo = np.where(ax == 0, -np.inf, np.minimum(tx1, tx2))
-    tx_hi = np.where(ax == 0, np.inf, np.maximum(tx1, tx2))
-    ty_lo = np.where(ay == 0, -np.inf, np.minimum(ty1, ty2))
-    ty_hi = np.where(ay == 0, np.inf, np.maximum(ty1, ty2))
-    return np.where(entry, np.maximum(np.maximum(tx_lo, ty_lo), 0.0), np.minimum(tx_hi, ty_hi))
-
-
 def ray_length_packed(p: np.ndarray, o: np.ndarray, d: np.ndarray, entry: np.ndarray | None = None) -> np.ndarray:
     """Exact distances from origins ``o`` along unit directions ``d`` to the boundary of rows ``p``.
 
@@ -730,37 +686,10 @@ def ray_length_packed(p: np.ndarray, o: np.ndarray, d: np.ndarray, entry: np.nda
     nearly linear, so few steps are needed; the root ``g = 1`` is that of ``beta``), started
     where the ray crosses the bounding rectangle, i.e. on the far side of the wanted root: the
     iterates are monotone and cannot skip it. Arrays ``p (K, 7)``, ``o (K, 2)``, ``d (K, 2)``,
-    ``entry (K,)``.
+    ``entry (K,)``. Compiled: :func:`navigation._geom_kernel.ray_length_rows`, each row iterated to
+    its own convergence.
     """
-    if entry is None:
-        entry = np.zeros(len(p), dtype=bool)
-    x0, y0, ax, ay = _ray_frame(p, o, d)
-    r = _rectangle_crossing(x0, y0, ax, ay, entry)
-    hi = np.where(entry, r + 2.0 * np.hypot(p[:, HW], p[:, HH]), r)
-    k = 2.0 - 4.0 * p[:, S] ** 2
-    sax = np.where(entry, -ax, ax)  # sign of the wanted slope folded into the direction
-    say = np.where(entry, -ay, ay)
-    zero = np.zeros_like(r)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        for _ in range(100):
-            x = x0 + r * ax
-            y = y0 + r * ay
-            x2, y2 = x * x, y * y
-            kx2, ky2 = k * x2, k * y2
-            root = np.sqrt(np.maximum(x2 * (x2 + ky2) + y2 * y2, 1e-300))
-            g2 = 0.5 * (x2 + y2 + root)  # beta + 1
-            half = 0.5 / root
-            # signed slope: beta' along the ray (times -1 for entry rows), > 0 where Newton applies
-            fp = x * sax * ((x2 + x2 + ky2) * half + 1.0) + y * say * ((y2 + y2 + kx2) * half + 1.0)
-            g = np.sqrt(g2)
-            # Newton on g: r - (g - 1) / g' with g - 1 = beta / (g + 1) and g' = beta' / (2 g)
-            step = (g2 - 1.0) * (g + g) / ((g + 1.0) * fp)
-            good = (fp > 0.0) & (g2 >= 1.0)
-            r_new = np.minimum(np.maximum(np.where(good, np.where(entry, r + step, r - step), r), zero), hi)
-            if (np.abs(r_new - r) <= 4e-16 * (1.0 + r)).all():
-                return r_new
-            r = r_new
-    return r
+    return _geom_kernel.ray_length_rows(p, o, d, entry)
 
 
 def beta_gradient_rows(P: np.ndarray, qx: np.ndarray, qy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

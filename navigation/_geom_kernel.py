@@ -1,0 +1,257 @@
+"""Compiled (numba) kernels of squircle geometry used by the forest construction.
+
+Each kernel runs, row by row, the same algorithm as the numpy function it mirrors in
+:mod:`navigation.geometry` or :mod:`navigation.forest`, without numpy's per-call overhead on
+small arrays (the forest construction calls these on a few dozen rows at a time):
+
+* :func:`point_xy`: a boundary point of a packed squircle row (the parametrisation of
+  :meth:`~navigation.geometry.Squircle.point_at`, :func:`~navigation.geometry.point_at_rows`);
+* :func:`signed_distance_rows`: :func:`navigation.geometry.signed_distance_rows` (exact
+  point-to-squircle distances: sampled candidates bracketing every local minimum, refined by
+  nested sampling);
+* :func:`ray_length_rows`: :func:`navigation.geometry.ray_length_packed` (exact ray lengths,
+  paper 001 eq. 15-16: monotone Newton on the gauge ``sqrt(beta + 1)``);
+* :func:`gap_bound_rows`: :func:`navigation.forest._gap_bound_rows` (lower bounds of the
+  distance between two squircles from their bounding rectangles and discs).
+
+Packed rows are ``(cx, cy, cos theta, sin theta, half width, half height, s)``
+(:func:`navigation.geometry.pack`). Every row is computed independently of the others in its
+batch. Results agree with the numpy functions to rounding (tested in
+``tests/test_geom_kernel.py``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+__all__ = ["point_xy", "point_xy_cs", "signed_distance_rows", "ray_length_rows", "gap_bound_rows"]
+
+_JIT = dict(cache=True, nogil=True)
+
+
+@numba.njit(inline="always", **_JIT)
+def point_xy(P, k, psi):
+    """Boundary point ``(x, y)`` of row ``P[k]`` at the boundary angle ``psi``."""
+    return point_xy_cs(P, k, math.cos(psi), math.sin(psi))
+
+
+@numba.njit(inline="always", **_JIT)
+def point_xy_cs(P, k, ux, uy):
+    """Boundary point ``(x, y)`` of row ``P[k]`` at the boundary angle with cosine ``ux`` and
+    sine ``uy``."""
+    m = ux * uy
+    s = P[k, 6]
+    rho = math.sqrt(2.0 / (1.0 + math.sqrt(max(1.0 - 4.0 * s * s * m * m, 0.0))))
+    lx = rho * ux * P[k, 4]
+    ly = rho * uy * P[k, 5]
+    c, sn = P[k, 2], P[k, 3]
+    return P[k, 0] + c * lx - sn * ly, P[k, 1] + sn * lx + c * ly
+
+
+@numba.njit(inline="always", **_JIT)
+def _beta(P, k, qx, qy):
+    """Obstacle function of row ``P[k]`` at ``(qx, qy)``."""
+    dx, dy = qx - P[k, 0], qy - P[k, 1]
+    c, sn = P[k, 2], P[k, 3]
+    x = (dx * c + dy * sn) / P[k, 4]
+    y = (dy * c - dx * sn) / P[k, 5]
+    x2, y2 = x * x, y * y
+    s = P[k, 6]
+    return 0.5 * (x2 + y2 + math.sqrt(x2 * x2 + y2 * y2 + (2.0 - 4.0 * s * s) * x2 * y2)) - 1.0
+
+
+@numba.njit(**_JIT)
+def _signed_distance_kernel(P, q, n, stages, m):
+    K = q.shape[0]
+    out = np.empty(K)
+    bx = np.empty(n)
+    by = np.empty(n)
+    d2 = np.empty(n)
+    dpsi = 2.0 * math.pi / n
+    cs = np.empty(n)
+    sn = np.empty(n)
+    for j in range(n):
+        cs[j], sn[j] = math.cos(j * dpsi), math.sin(j * dpsi)
+    for k in range(K):
+        qx, qy = q[k, 0], q[k, 1]
+        for j in range(n):
+            bx[j], by[j] = point_xy_cs(P, k, cs[j], sn[j])
+        # half the longest arc between samples (chord over the cosine of the turn, capped)
+        half = 0.0
+        dmin = math.inf
+        for j in range(n):
+            jm, jp, jpp = (j - 1) % n, (j + 1) % n, (j + 2) % n
+            ex, ey = bx[jp] - bx[j], by[jp] - by[j]
+            chord = math.hypot(ex, ey)
+            # neighbouring chords: k - 1 -> k and k + 1 -> k + 2
+            ex0, ey0 = bx[j] - bx[jm], by[j] - by[jm]
+            ex2, ey2 = bx[jpp] - bx[jp], by[jpp] - by[jp]
+            cos = (ex0 * ex2 + ey0 * ey2) / max(math.hypot(ex0, ey0) * math.hypot(ex2, ey2), 1e-300)
+            arc = chord / max(cos, 0.1) if cos > 0.1 else math.inf
+            half = max(half, 0.5 * arc)
+            d2[j] = (bx[j] - qx) ** 2 + (by[j] - qy) ** 2
+            dmin = min(dmin, d2[j])
+        limit = (math.sqrt(dmin) + half) ** 2
+        best = math.inf
+        for j in range(n):
+            if d2[j] <= d2[(j - 1) % n] and d2[j] <= d2[(j + 1) % n] and d2[j] <= limit:
+                lo = (j - 1) * dpsi if j > 0 else (n - 1) * dpsi - 2.0 * math.pi
+                hi = ((j + 1) % n) * dpsi if j < n - 1 else 2.0 * math.pi
+                for _ in range(stages):
+                    kb, vb = 0, math.inf
+                    for t in range(m + 1):
+                        ps = lo + (hi - lo) * (t / m)
+                        px, py = point_xy(P, k, ps)
+                        v = (px - qx) ** 2 + (py - qy) ** 2
+                        if v < vb:
+                            kb, vb = t, v
+                    best = min(best, vb)
+                    step = (hi - lo) / m
+                    centre = lo + (hi - lo) * (kb / m)
+                    lo, hi = centre - step, centre + step
+        dist = math.sqrt(best)
+        out[k] = -dist if _beta(P, k, qx, qy) < 0.0 else dist
+    return out
+
+
+def signed_distance_rows(P: np.ndarray, q: np.ndarray, n: int = 128, stages: int = 11, m: int = 16) -> np.ndarray:
+    """Signed distances (negative inside) of the points ``q (K, 2)`` to the squircles of the rows
+    ``P (K, 7)``: :func:`navigation.geometry.signed_distance_rows`, compiled."""
+    q = np.ascontiguousarray(q, dtype=float).reshape(-1, 2)
+    P = np.ascontiguousarray(P, dtype=float).reshape(-1, 7)
+    if len(q) == 0:
+        return np.empty(0)
+    return _signed_distance_kernel(P, q, int(n), int(stages), int(m))
+
+
+@numba.njit(**_JIT)
+def _ray_length_kernel(p, o, d, entry):
+    K = p.shape[0]
+    out = np.empty(K)
+    for k in range(K):
+        c, sn = p[k, 2], p[k, 3]
+        ihw, ihh = 1.0 / p[k, 4], 1.0 / p[k, 5]
+        dx, dy = o[k, 0] - p[k, 0], o[k, 1] - p[k, 1]
+        x0 = (dx * c + dy * sn) * ihw
+        y0 = (dy * c - dx * sn) * ihh
+        ax = (d[k, 0] * c + d[k, 1] * sn) * ihw
+        ay = (d[k, 1] * c - d[k, 0] * sn) * ihh
+        # crossing of the bounding rectangle [-1, 1]^2: beyond the wanted root
+        if ax == 0.0:
+            tx_lo, tx_hi = -math.inf, math.inf
+        else:
+            t1, t2 = (-1.0 - x0) / ax, (1.0 - x0) / ax
+            tx_lo, tx_hi = min(t1, t2), max(t1, t2)
+        if ay == 0.0:
+            ty_lo, ty_hi = -math.inf, math.inf
+        else:
+            t1, t2 = (-1.0 - y0) / ay, (1.0 - y0) / ay
+            ty_lo, ty_hi = min(t1, t2), max(t1, t2)
+        en = entry[k]
+        if en:
+            r = max(max(tx_lo, ty_lo), 0.0)
+            hi = r + 2.0 * math.hypot(p[k, 4], p[k, 5])
+            sax, say = -ax, -ay
+        else:
+            r = min(tx_hi, ty_hi)
+            hi = r
+            sax, say = ax, ay
+        kk = 2.0 - 4.0 * p[k, 6] ** 2
+        for _ in range(100):
+            x = x0 + r * ax
+            y = y0 + r * ay
+            x2, y2 = x * x, y * y
+            root = math.sqrt(max(x2 * (x2 + kk * y2) + y2 * y2, 1e-300))
+            g2 = 0.5 * (x2 + y2 + root)
+            half = 0.5 / root
+            fp = x * sax * ((x2 + x2 + kk * y2) * half + 1.0) + y * say * ((y2 + y2 + kk * x2) * half + 1.0)
+            g = math.sqrt(g2)
+            r_new = r
+            if fp > 0.0 and g2 >= 1.0:
+                step = (g2 - 1.0) * (g + g) / ((g + 1.0) * fp)
+                r_new = r + step if en else r - step
+            r_new = min(max(r_new, 0.0), hi)
+            if abs(r_new - r) <= 4e-16 * (1.0 + r):
+                r = r_new
+                break
+            r = r_new
+        out[k] = r
+    return out
+
+
+def ray_length_rows(p: np.ndarray, o: np.ndarray, d: np.ndarray, entry: np.ndarray | None = None) -> np.ndarray:
+    """Exact distances from origins ``o (K, 2)`` along unit directions ``d (K, 2)`` to the
+    boundary of rows ``p (K, 7)`` (exit, or entry where ``entry``):
+    :func:`navigation.geometry.ray_length_packed`, compiled, each row iterated to its own
+    convergence."""
+    p = np.ascontiguousarray(p, dtype=float).reshape(-1, 7)
+    if len(p) == 0:
+        return np.empty(0)
+    o = np.ascontiguousarray(np.broadcast_to(o, (len(p), 2)), dtype=float)
+    d = np.ascontiguousarray(np.broadcast_to(d, (len(p), 2)), dtype=float)
+    e = np.zeros(len(p), dtype=np.bool_) if entry is None else np.ascontiguousarray(entry, dtype=np.bool_)
+    return _ray_length_kernel(p, o, d, e)
+
+
+@numba.njit(inline="always", **_JIT)
+def _corner(P, k, t):
+    """Corner ``t`` (0..3, counter-clockwise from (+, +)) of row ``P[k]``'s bounding rectangle."""
+    sx = 1.0 if t == 0 or t == 3 else -1.0
+    sy = 1.0 if t < 2 else -1.0
+    lx, ly = sx * P[k, 4], sy * P[k, 5]
+    return P[k, 0] + P[k, 2] * lx - P[k, 3] * ly, P[k, 1] + P[k, 3] * lx + P[k, 2] * ly
+
+
+@numba.njit(**_JIT)
+def _corner_edge(P, a, Q, b):
+    """Smallest distance from the corners of row ``P[a]``'s rectangle to the edges of ``Q[b]``'s."""
+    best = math.inf
+    for u in range(4):
+        px, py = _corner(P, a, u)
+        for e in range(4):
+            ax_, ay_ = _corner(Q, b, e)
+            bx_, by_ = _corner(Q, b, (e + 1) % 4)
+            ex, ey = bx_ - ax_, by_ - ay_
+            vx, vy = px - ax_, py - ay_
+            t = min(max((vx * ex + vy * ey) / (ex * ex + ey * ey), 0.0), 1.0)
+            best = min(best, math.hypot(vx - t * ex, vy - t * ey))
+    return best
+
+
+@numba.njit(**_JIT)
+def _gap_bound_kernel(A, B):
+    E = A.shape[0]
+    out = np.empty(E)
+    for k in range(E):
+        dx, dy = B[k, 0] - A[k, 0], B[k, 1] - A[k, 1]
+        sep = False
+        for axis in range(4):
+            if axis == 0:
+                nx, ny = A[k, 2], A[k, 3]
+            elif axis == 1:
+                nx, ny = -A[k, 3], A[k, 2]
+            elif axis == 2:
+                nx, ny = B[k, 2], B[k, 3]
+            else:
+                nx, ny = -B[k, 3], B[k, 2]
+            ra = A[k, 4] * abs(nx * A[k, 2] + ny * A[k, 3]) + A[k, 5] * abs(-nx * A[k, 3] + ny * A[k, 2])
+            rb = B[k, 4] * abs(nx * B[k, 2] + ny * B[k, 3]) + B[k, 5] * abs(-nx * B[k, 3] + ny * B[k, 2])
+            if abs(nx * dx + ny * dy) > ra + rb:
+                sep = True
+        rect = min(_corner_edge(A, k, B, k), _corner_edge(B, k, A, k)) if sep else 0.0
+        disc = math.hypot(dx, dy) - math.hypot(A[k, 4], A[k, 5]) - math.hypot(B[k, 4], B[k, 5])
+        out[k] = max(max(rect, disc), 0.0)
+    return out
+
+
+def gap_bound_rows(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """Lower bounds ``(E,)`` of the distances between the squircles of rows ``A[k]`` and
+    ``B[k]``: :func:`navigation.forest._gap_bound_rows`, compiled."""
+    A = np.ascontiguousarray(A, dtype=float).reshape(-1, 7)
+    B = np.ascontiguousarray(B, dtype=float).reshape(-1, 7)
+    if len(A) == 0:
+        return np.empty(0)
+    return _gap_bound_kernel(A, B)
