@@ -78,7 +78,6 @@ from dataclasses import dataclass, field
 
 import networkx as nx
 import numpy as np
-from scipy.spatial import cKDTree
 
 from ._geom_kernel import gap_bound_rows
 from ._memo import Memo
@@ -1297,9 +1296,9 @@ def _build(workspace, obstacles, min_gap, min_overlap, *, full: bool) -> Forest 
         cs = np.array([obstacles[k].center for k in live])
         rs = np.array([bodies[k].radius for k in live])
         margin = max(min_gap, 1e-9) * 2.0
-        tree = cKDTree(cs)
-        cand = [(live[a], live[b]) for a, b in sorted(tree.query_pairs(2.0 * rs.max() + margin))
-                if np.hypot(*(cs[a] - cs[b])) <= rs[a] + rs[b] + margin]
+        A, B = np.triu_indices(len(live), 1)
+        near = np.hypot(cs[A, 0] - cs[B, 0], cs[A, 1] - cs[B, 1]) <= rs[A] + rs[B] + margin
+        cand = [(live[a], live[b]) for a, b in zip(A[near].tolist(), B[near].tolist())]
         rels = _pair_relations([bodies[i] for i, _ in cand], [bodies[j] for _, j in cand])
         for (i, j), rel in zip(cand, rels):
             if rel is None:
