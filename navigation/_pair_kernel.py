@@ -1,7 +1,7 @@
 """Compiled exact distance between two squircle boundaries (numba kernels of :mod:`navigation.forest`).
 
-Mirrors :func:`navigation.forest._pair_distance` and :func:`navigation.forest._newton_pair`, row by
-row, in plain loops compiled by numba (``cache=True``, no fastmath):
+The exact pair distance behind :func:`navigation.forest._pair_distance` (which calls
+:func:`pair_distance`), row by row, in plain loops compiled by numba (``cache=True``, no fastmath):
 
 * :func:`newton_pair` minimises ``f(s, t) = |a(s) - b(t)|^2`` over the boundary parameters of two
   packed squircle rows (layout of :func:`navigation.geometry.pack`) by safeguarded Newton with the
@@ -20,9 +20,9 @@ row, in plain loops compiled by numba (``cache=True``, no fastmath):
 * :func:`pair_distance` is ``_pair_distance(bodies, I, J, tol)`` itself (groups the rows by
   sample counts, stacks the bodies' arrays and calls :func:`pair_distance_arrays` per group).
 
-The point and jet formulas are copied operation by operation from
-:func:`navigation.geometry._point_xy_rows` and :func:`~navigation.geometry.boundary_jet_rows`, so
-results agree with numpy to rounding (``cos``/``sin`` may differ from numpy's in the last bit).
+The point and jet formulas are those of :func:`navigation.geometry._point_xy_rows` and
+:func:`~navigation.geometry.boundary_jet_rows`, operation by operation (results equalled the
+former numpy implementation's bit for bit on every captured forest-build input).
 Every row is computed independently of the other rows of its batch.
 """
 

@@ -80,6 +80,7 @@ import networkx as nx
 import numpy as np
 
 from ._geom_kernel import gap_bound_rows
+from ._pair_kernel import pair_distance
 from ._memo import Memo
 from .errors import ForestError
 from .geometry import (COS, CX, CY, HH, HW, S, SIN, Squircle, beta_gradient_rows, boundary_jet_rows,
@@ -420,13 +421,6 @@ def _signed_distance(bodies: Sequence[_Body], bid: np.ndarray, q: np.ndarray) ->
     return signed_distance_rows(np.stack([bodies[b].row for b in bid]) if len(bid) else np.zeros((0, 7)), q)
 
 
-def _sq_dists(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Squared distances ``(k, n, m)`` between the points ``a (k, n, 2)`` and ``b (k, m, 2)``."""
-    dx = a[:, :, None, 0] - b[:, None, :, 0]
-    dy = a[:, :, None, 1] - b[:, None, :, 1]
-    return dx * dx + dy * dy
-
-
 def _corners(P: np.ndarray) -> np.ndarray:
     """Corners ``(K, 4, 2)`` (counter-clockwise) of the bounding rectangles of rows ``P (K, 7)``."""
     sx = np.array([1.0, -1.0, -1.0, 1.0])
@@ -500,131 +494,13 @@ def _pair_distance(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, tol: f
     boundary of ``I``) of the coarse distance that lies within the coarse sampling error of the
     smallest is a candidate; each candidate is refined to the closest pair of samples within 8
     samples on both boundaries, then by Newton on both boundary parameters with exact
-    derivatives (:func:`_newton_pair`); the smallest result wins. For disjoint convex sets the
+    derivatives (:func:`navigation._pair_kernel.newton_pair`); the smallest result wins. For disjoint convex sets the
     facing local minimum is unique; for an obstacle inside the workspace the distance to the
     boundary can have several nearly equal local minima (near a corner), all of which are
-    refined. Returns ``(distances (K,), points_on_I (K, 2), points_on_J (K, 2))``.
+    refined. Returns ``(distances (K,), points_on_I (K, 2), points_on_J (K, 2))``. Compiled:
+    :func:`navigation._pair_kernel.pair_distance`.
     """
-    K = len(I)
-    if K == 0:
-        return np.empty(0), np.empty((0, 2)), np.empty((0, 2))
-    stride, half = 8, 8
-    off = np.arange(-half, half + 1)
-    cand_row, cand_c, cand_w, cand_f = [], [], [], []
-    # rows grouped by the sample counts of their two bodies (obstacles, the workspace)
-    groups: dict[tuple[int, int], list[int]] = {}
-    for k, (i, j) in enumerate(zip(I, J)):
-        groups.setdefault((len(bodies[i].pts), len(bodies[j].pts)), []).append(k)
-    for (na, nb), rows in groups.items():
-        rows = np.asarray(rows)
-        A = np.stack([bodies[i].pts for i in I[rows]])  # (k, na, 2)
-        B = np.stack([bodies[j].pts for j in J[rows]])
-        # coarse: every stride-th sample of both; profile along I of the nearest J sample
-        a, b = A[:, ::stride], B[:, ::stride]
-        d2 = _sq_dists(a, b)  # (k, na/s, nb/s)
-        kb_all = np.argmin(d2, axis=2)
-        prof = np.sqrt(np.take_along_axis(d2, kb_all[:, :, None], axis=2)[:, :, 0])
-        margin = stride * np.array([bodies[i].spacing + bodies[j].spacing for i, j in zip(I[rows], J[rows])])
-        local = (prof <= np.roll(prof, 1, axis=1)) & (prof <= np.roll(prof, -1, axis=1))
-        local &= prof <= (prof.min(axis=1) + margin)[:, None]
-        rr, ka = np.nonzero(local)
-        kb = kb_all[rr, ka]
-        # fine: all samples within `half` of each coarse candidate (wrapping around)
-        ia = (ka[:, None] * stride + off[None, :]) % na
-        ib = (kb[:, None] * stride + off[None, :]) % nb
-        d2 = _sq_dists(A[rr[:, None], ia], B[rr[:, None], ib]).reshape(len(rr), -1)
-        la, lb = np.divmod(np.argmin(d2, axis=1), len(off))
-        e = np.arange(len(rr))
-        fa, fb = ia[e, la], ib[e, lb]
-        psi_a = np.stack([bodies[i].psi for i in I[rows]])
-        psi_b = np.stack([bodies[j].psi for j in J[rows]])
-        w_a = np.array([bodies[i].w0 for i in I[rows]])
-        w_b = np.array([bodies[j].w0 for j in J[rows]])
-        cand_c.append(np.stack((psi_a[rr, fa], psi_b[rr, fb]), axis=1))
-        cand_w.append(np.stack((w_a[rr], w_b[rr]), axis=1))
-        cand_row.append(rows[rr])
-        cand_f.append(d2[e, la * len(off) + lb])
-    row = np.concatenate(cand_row)
-    PI = np.stack([bodies[i].row for i in I])
-    PJ = np.stack([bodies[j].row for j in J])
-    c, f = _newton_pair(PI[row], PJ[row], np.concatenate(cand_c), half * np.concatenate(cand_w), np.concatenate(cand_f),
-                        tol=tol)
-    # the best candidate of every row
-    order = np.lexsort((f, row))
-    first = order[np.concatenate(([True], row[order][1:] != row[order][:-1]))]
-    best = np.empty(K, dtype=np.intp)
-    best[row[first]] = first
-    c, f = c[best], f[best]
-    return np.sqrt(f), _xy(PI, c[:, 0]), _xy(PJ, c[:, 1])
-
-
-def _newton_pair(PI: np.ndarray, PJ: np.ndarray, c0: np.ndarray, w0: np.ndarray, f0: np.ndarray, *,
-                 tol: float, max_iter: int = 60) -> tuple[np.ndarray, np.ndarray]:
-    """Minimise ``f(s, t) = |a(s) - b(t)|^2`` over the boundary parameters of rows ``PI``, ``PJ``
-    from ``c0 (K, 2)`` (the closest sample pair, value ``f0``), one problem per row.
-
-    Safeguarded Newton with the exact derivatives of :func:`~navigation.geometry.boundary_jet_rows`:
-    a step is the Newton step where the Hessian is positive definite and a Levenberg-Marquardt step
-    elsewhere, clipped to the sampling window ``w0`` and halved until ``f`` does not increase
-    (so ``f`` never exceeds ``f0``). A row stops when its Newton step is below ``tol`` (radians),
-    when no step along its direction decreases ``f``, or when ``f`` decreased by less than 1e-14
-    relative.
-    """
-    c, f = c0.astype(float).copy(), f0.astype(float).copy()
-    active = np.ones(len(c), bool)
-    for _ in range(max_iter):
-        r = np.nonzero(active)[0]
-        if r.size == 0:
-            break
-        a, a1, a2 = boundary_jet_rows(PI[r], c[r, 0])
-        b, b1, b2 = boundary_jet_rows(PJ[r], c[r, 1])
-        d = a - b
-        gs, gt = 2.0 * (d * a1).sum(-1), -2.0 * (d * b1).sum(-1)
-        hss = 2.0 * ((a1 * a1).sum(-1) + (d * a2).sum(-1))
-        htt = 2.0 * ((b1 * b1).sum(-1) - (d * b2).sum(-1))
-        hst = -2.0 * (a1 * b1).sum(-1)
-        det = hss * htt - hst * hst
-        newton = (hss > 0) & (det > 1e-12 * np.maximum(hss * htt, 1e-300))
-        # elsewhere shift the Hessian by its smallest eigenvalue and a little more (Levenberg-
-        # Marquardt): the step follows curved flat valleys (nearly parallel faces) instead of
-        # zigzagging across them
-        low = 0.5 * (hss + htt) - np.sqrt(0.25 * (hss - htt) ** 2 + hst * hst)
-        lam = np.where(newton, 0.0, np.maximum(-low, 0.0) + 1e-3 * (np.abs(hss) + np.abs(htt)) + 1e-300)
-        hs, ht = hss + lam, htt + lam
-        step = -np.stack((ht * gs - hst * gt, hs * gt - hst * gs), 1) / (hs * ht - hst * hst)[:, None]
-        step = np.clip(step, -w0[r], w0[r])
-        # converged: the Newton step is tiny, or the step's first-order decrease is below 1e-13
-        # relative (the distance is then settled to ~5e-14 relative; the parameters may still
-        # slide along a flat valley between nearly parallel faces, which changes nothing)
-        gain = -(gs * step[:, 0] + gt * step[:, 1])
-        done = (newton & (np.abs(step).max(axis=1) <= tol)) | (gain <= 1e-13 * f[r] + 1e-300)
-        active[r[done]] = False
-        r, step, newton = r[~done], step[~done], newton[~done]
-        if r.size == 0:
-            break
-        moved = np.zeros(len(r), bool)
-        taken = np.zeros(len(r))  # size of the accepted step
-        before = f[r].copy()
-        todo = np.arange(len(r))  # rows (of r) still backtracking
-        for _ in range(16):  # backtracking
-            rt = r[todo]
-            trial = c[rt] + step[todo]
-            ft = ((_xy(PI[rt], trial[:, 0]) - _xy(PJ[rt], trial[:, 1])) ** 2).sum(-1)
-            ok = ft <= f[rt]
-            acc = todo[ok]
-            c[r[acc]] = trial[ok]
-            f[r[acc]] = ft[ok]
-            taken[acc] = np.abs(step[acc]).max(axis=1)
-            moved[acc] = True
-            todo = todo[~ok]
-            if todo.size == 0:
-                break
-            step[todo] *= 0.5
-        # a row stops at a tiny Newton step, when no step along its direction decreases f, or when
-        # f decreased by less than 1e-14 relative (flat valleys: parallel faces slide freely)
-        stalled = before - f[r] <= 1e-14 * before
-        active[r] = moved & ~(newton & (taken <= tol)) & ~stalled
-    return c, f
+    return pair_distance(bodies, I, J, tol)
 
 
 def _extreme_beta(body: _Body, other_row: np.ndarray, sign: float, vals: np.ndarray | None = None) -> float:

@@ -1,12 +1,12 @@
-"""The compiled pair-distance kernels (navigation._pair_kernel) against the numpy reference
-(navigation.forest._pair_distance, _newton_pair) on inputs captured from real forest builds."""
+"""The compiled pair-distance kernels (navigation._pair_kernel, which navigation.forest's
+_pair_distance calls) on inputs captured from real forest builds: closest points on the
+boundaries, distances against dense sampling, independence of the batch."""
 
 from __future__ import annotations
 
 import functools
 
 import numpy as np
-import pytest
 from scipy.spatial import cKDTree
 
 import navigation
@@ -17,7 +17,7 @@ from navigation.geometry import beta_rows
 from .conftest import world_file
 from .worldgen import random_forest_world
 
-TOL = 1e-12  # absolute agreement of distances and points with numpy
+TOL = 1e-12  # absolute agreement of distances (grouped vs ungrouped; points vs distance)
 SEEDS = [(seed, n) for n in (5, 10, 20) for seed in range(4)]
 
 
@@ -32,36 +32,32 @@ def _worlds():
 
 @functools.lru_cache(maxsize=None)
 def _captured():
-    """Per world, the arguments of every ``_pair_distance`` and ``_newton_pair`` call of a cold
-    ``build_forest`` followed by the full ``distances`` and ``wall_distance``."""
-    pair, newton = F._pair_distance, F._newton_pair
+    """Per world, the arguments of every ``_pair_distance`` call of a cold ``build_forest``
+    followed by the full ``distances`` and ``wall_distance``."""
+    pair = F._pair_distance
     out = []
     for name, w in _worlds():
-        rec_p, rec_n = [], []
+        rec_p = []
 
         def rp(bodies, I, J, tol=1e-12):
             rec_p.append((list(bodies), np.array(I), np.array(J), tol))
             return pair(bodies, I, J, tol)
 
-        def rn(*args, **kw):
-            rec_n.append(([np.array(a) for a in args], dict(kw)))
-            return newton(*args, **kw)
-
-        F._pair_distance, F._newton_pair = rp, rn
+        F._pair_distance = rp
         try:
             F.clear_cache()
             forest = F.build_forest(w.workspace, w.obstacles)
             forest.distances, forest.wall_distance  # noqa: B018 (lazy: all exact pair distances)
         finally:
-            F._pair_distance, F._newton_pair = pair, newton
-        out.append((name, rec_p, rec_n))
+            F._pair_distance = pair
+        out.append((name, rec_p))
     F.clear_cache()
     return out
 
 
 def _pair_calls():
     """Every captured ``_pair_distance`` call as ``(name, bodies, I, J, tol)``."""
-    return [(name, *args) for name, rec_p, _ in _captured() for args in rec_p]
+    return [(name, *args) for name, rec_p in _captured() for args in rec_p]
 
 
 def test_captured_inputs_cover_both_groups():
@@ -71,26 +67,11 @@ def test_captured_inputs_cover_both_groups():
     assert {(256, 256), (256, 1024)} <= counts
 
 
-def test_pair_distance_matches_numpy():
-    """Distances and closest points agree with ``_pair_distance`` to 1e-12 on every captured
-    call (whole call with mixed groups, through :func:`pair_distance`)."""
-    rows = 0
-    for name, bodies, I, J, tol in _pair_calls():
-        d0, a0, b0 = F._pair_distance(bodies, I, J, tol)
-        d1, a1, b1 = PK.pair_distance(bodies, I, J, tol)
-        assert d1.shape == d0.shape and a1.shape == a0.shape and b1.shape == b0.shape
-        np.testing.assert_allclose(d1, d0, rtol=0, atol=TOL, err_msg=name)
-        np.testing.assert_allclose(a1, a0, rtol=0, atol=1e-9, err_msg=name)
-        np.testing.assert_allclose(b1, b0, rtol=0, atol=1e-9, err_msg=name)
-        rows += len(I)
-    assert rows > 200
-
-
 def test_pair_distance_arrays_one_group():
-    """:func:`pair_distance_arrays` on one stacked group per sample-count pair, as the lead's
-    wiring will call it, equals numpy row by row."""
+    """:func:`pair_distance_arrays` on one stacked group per sample-count pair equals
+    :func:`pair_distance` (which groups ragged rows itself) row by row."""
     for name, bodies, I, J, tol in _pair_calls():
-        d0, a0, b0 = F._pair_distance(bodies, I, J, tol)
+        d0, a0, b0 = PK.pair_distance(bodies, I, J, tol)
         for na in sorted({len(bodies[j].pts) for j in J}):
             k = np.array([t for t in range(len(I)) if len(bodies[J[t]].pts) == na])
             bi, bj = [bodies[i] for i in I[k]], [bodies[j] for j in J[k]]
@@ -144,22 +125,6 @@ def test_pair_distance_against_dense_sampling():
     assert rows > 300
 
 
-def test_newton_pair_matches_numpy():
-    """:func:`newton_pair` on every captured ``_newton_pair`` call equals numpy: parameters and
-    values to 1e-12."""
-    calls = 0
-    for name, _, rec_n in _captured():
-        for args, kw in rec_n:
-            c0, f0 = F._newton_pair(*args, **kw)
-            c1, f1 = PK.newton_pair(*args, **kw)
-            np.testing.assert_allclose(c1, c0, rtol=0, atol=1e-12, err_msg=name)
-            np.testing.assert_allclose(f1, f0, rtol=0, atol=1e-12, err_msg=name)
-            # f never exceeds the start value
-            assert np.all(f1 <= args[4]), name
-            calls += 1
-    assert calls > 20
-
-
 def test_rows_independent_of_batch():
     """A row's result does not depend on the other rows of its batch (each row alone, and the
     batch reversed, give the same bits)."""
@@ -183,26 +148,3 @@ def test_empty_inputs():
     assert d.shape == (0,) and a.shape == (0, 2) and b.shape == (0, 2)
     d, a, b = PK.pair_distance([], np.zeros(0, np.intp), np.zeros(0, np.intp))
     assert d.shape == (0,) and a.shape == (0, 2) and b.shape == (0, 2)
-
-
-@pytest.mark.parametrize("which", ["pair_distance", "newton_pair"])
-def test_build_forest_with_kernel(monkeypatch, which):
-    """``build_forest`` with the kernel in place of the numpy function gives the same forest:
-    structure identical, centres, depths, far gaps, clearances and distances to 1e-12."""
-    worlds = [w for name, w in _worlds() if name in ("random20-0", "random10-1", "office", "cluttered20")]
-    for w in worlds:
-        F.clear_cache()
-        ref = F.build_forest(w.workspace, w.obstacles)
-        ref_d, ref_w = ref.distances, ref.wall_distance
-        with monkeypatch.context() as m:
-            m.setattr(F, "_" + which, getattr(PK, which))
-            F.clear_cache()
-            got = F.build_forest(w.workspace, w.obstacles)
-            got_d, got_w = got.distances, got.wall_distance
-        F.clear_cache()
-        for attr in ("source_index", "dropped", "parent", "children", "depth", "roots", "tree_of"):
-            assert getattr(got, attr) == getattr(ref, attr), attr
-        for attr in ("center", "center_depth", "far_gap", "clearance"):
-            np.testing.assert_allclose(getattr(got, attr), getattr(ref, attr), rtol=0, atol=1e-12, err_msg=attr)
-        np.testing.assert_allclose(got_d, ref_d, rtol=0, atol=1e-12)
-        np.testing.assert_allclose(got_w, ref_w, rtol=0, atol=1e-12)
