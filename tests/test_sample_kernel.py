@@ -1,0 +1,334 @@
+"""The numba kernels of navigation._sample_kernel against the numpy functions of navigation.forest
+(``_sample_rows``, ``_extreme_betas``) on inputs captured from real builds, and their
+mathematical properties: samples on the boundary, evenly spaced in arc length; extreme betas
+never worse than a dense sampling where they are refined, and of the right sign elsewhere."""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pytest
+
+import navigation
+import navigation.forest as nf
+from navigation._sample_kernel import extreme_betas_arrays, sample_rows
+from navigation.geometry import CX, CY, S, beta_gradient_rows, point_at_rows
+
+from .conftest import shared_world
+from .worldgen import random_forest_world
+
+TOL = 1e-13  # agreement with the numpy functions (observed: bit-identical)
+RANDOM = [(0, 20), (1, 5), (2, 8), (3, 12), (4, 16), (5, 20), (6, 10), (7, 14)]  # (seed, obstacles)
+
+
+def _world(name):
+    """A named example world or ``(seed, n_obstacles)`` of :func:`random_forest_world`."""
+    if isinstance(name, str):
+        return shared_world(name)
+    return _random_world(*name)
+
+
+@functools.lru_cache(maxsize=None)
+def _random_world(seed: int, n: int):
+    """``random_forest_world(seed, n_obstacles=n, max_depth=4)``, generated once."""
+    return random_forest_world(seed, n_obstacles=n, max_depth=4)
+
+
+WORLDS = ["office", "cluttered20", *RANDOM]
+
+
+def _stack(bodies):
+    """The stacked body fields ``(rows, psi, pts, spacing, w0)`` of :func:`extreme_betas_arrays`."""
+    return (np.stack([b.row for b in bodies]), np.stack([b.psi for b in bodies]), np.stack([b.pts for b in bodies]),
+            np.array([b.spacing for b in bodies]), np.array([b.w0 for b in bodies]))
+
+
+def _extreme_betas(bodies, others, sign, vals):
+    """``navigation.forest._extreme_betas`` through the kernel (as the lead wires it in)."""
+    if len(bodies) == 0:
+        return np.empty(0)
+    rows, psi, pts, spacing, w0 = _stack(bodies)
+    return extreme_betas_arrays(others, sign, vals, rows, psi, pts, spacing, w0)
+
+
+@functools.lru_cache(maxsize=None)
+def _captured(name):
+    """Arguments (and numpy results) of every ``_sample_rows`` and ``_extreme_betas`` call of a
+    cold ``build_forest`` of world ``name``."""
+    world = _world(name)
+    samples, extremes = [], []
+    orig_s, orig_e = nf._sample_rows, nf._extreme_betas
+
+    def rec_s(P, n):
+        samples.append((np.array(P), n))
+        return orig_s(P, n)
+
+    def rec_e(bodies, others, sign, vals):
+        out = orig_e(bodies, others, sign, vals)
+        extremes.append((np.array(others), np.array(sign, float), np.array(vals), *_stack(bodies), out))
+        return out
+
+    nf._sample_rows, nf._extreme_betas = rec_s, rec_e
+    try:
+        nf.clear_cache()
+        navigation.build_forest(world.workspace, world.obstacles)
+    finally:
+        nf._sample_rows, nf._extreme_betas = orig_s, orig_e
+        nf.clear_cache()
+    assert samples and extremes
+    return samples, extremes
+
+
+def _random_rows(rng, K, s_max=0.99, aspect_min=0.2):
+    """``K`` random packed squircles (half-extents 0.05 .. 3, aspect >= ``aspect_min``)."""
+    P = np.zeros((K, 7))
+    P[:, CX:CY + 1] = rng.uniform(-5.0, 5.0, (K, 2))
+    th = rng.uniform(0.0, 2 * np.pi, K)
+    P[:, 2], P[:, 3] = np.cos(th), np.sin(th)
+    P[:, 4] = rng.uniform(0.05, 3.0, K)
+    P[:, 5] = P[:, 4] * rng.uniform(aspect_min, 1.0, K)
+    P[:, S] = rng.uniform(0.0, s_max, K)
+    return P
+
+
+def _assert_samples_close(a, b, scale):
+    """Two ``(P, psi, pts, w0, spacing)`` tuples agree to :data:`TOL` (points relative to ``scale``)."""
+    np.testing.assert_array_equal(a[0], b[0])
+    np.testing.assert_allclose(a[1], b[1], rtol=0, atol=TOL)
+    np.testing.assert_allclose(a[2], b[2], rtol=0, atol=TOL * scale)
+    np.testing.assert_allclose(a[3], b[3], rtol=0, atol=TOL)
+    np.testing.assert_allclose(a[4], b[4], rtol=0, atol=TOL * scale)
+
+
+# ---------------------------------------------------------------------- sample_rows
+@pytest.mark.parametrize("name", WORLDS, ids=str)
+def test_sample_rows_matches_numpy_on_real_inputs(name):
+    for P, n in _captured(name)[0]:
+        got = sample_rows(P, n)
+        assert got[1].shape == (len(P), n) and got[2].shape == (len(P), n, 2)
+        _assert_samples_close(got, nf._sample_rows(P, n), 1.0 + np.abs(P[:, :2]).max() + P[:, 4:6].max())
+
+
+@pytest.mark.parametrize("n", [16, 64, 256, 1024])
+def test_sample_rows_matches_numpy_on_random_rows(n):
+    P = _random_rows(np.random.default_rng(n), 60)
+    P[10:20, S] = P[0, S]  # rows of equal s share their unit chords
+    _assert_samples_close(sample_rows(P, n), nf._sample_rows(P, n), 10.0)
+
+
+def test_sample_rows_rows_are_independent():
+    P = _random_rows(np.random.default_rng(3), 30)
+    P[::3, S] = 0.99
+    batch = sample_rows(P, 256)
+    for k in range(len(P)):
+        for a, b in zip(sample_rows(P[k:k + 1], 256)[1:], batch[1:]):
+            np.testing.assert_array_equal(a[0], b[k])
+
+
+def _check_sample_properties(P, psi, pts, w0, spacing, chord_spread):
+    """Samples on the boundary, angles increasing in ``[0, 2 pi)``, chords even to
+    ``chord_spread`` (relative), ``spacing`` the largest chord, ``w0`` 1.5 x the largest gap."""
+    np.testing.assert_allclose(pts, point_at_rows(P, psi), rtol=0, atol=1e-12)
+    beta = nf._beta(P, pts)
+    assert np.abs(beta).max() < 1e-12
+    assert np.all(psi[:, 0] == 0.0) and np.all(np.diff(psi, axis=1) > 0) and np.all(psi[:, -1] < 2 * np.pi)
+    chords = np.linalg.norm(pts - np.roll(pts, 1, axis=1), axis=2)
+    assert np.all(chords.max(axis=1) <= (1.0 + chord_spread) * chords.min(axis=1))
+    np.testing.assert_array_equal(spacing, chords.max(axis=1))
+    gaps = np.diff(np.concatenate((psi, psi[:, :1] + 2 * np.pi), axis=1), axis=1)
+    np.testing.assert_array_equal(w0, 1.5 * gaps.max(axis=1))
+
+
+@pytest.mark.parametrize("n", [256, 1024])
+def test_sample_rows_properties_random(n):
+    # smooth squircles (aspect >= 1:5), as many samples as forest uses: chords within 1 %
+    P = _random_rows(np.random.default_rng(100 + n), 200)
+    _check_sample_properties(*sample_rows(P, n), chord_spread=0.01)
+
+
+@pytest.mark.parametrize("name", ["office", "cluttered20", (0, 20)], ids=str)
+def test_sample_rows_properties_real(name):
+    # thin walls (aspect down to 1:10) with s = 0.99: chords within 2 %
+    for P, n in _captured(name)[0]:
+        _check_sample_properties(*sample_rows(P, n), chord_spread=0.02)
+
+
+def test_sample_rows_empty():
+    P, psi, pts, w0, spacing = sample_rows(np.zeros((0, 7)), 256)
+    assert psi.shape == (0, 256) and pts.shape == (0, 256, 2) and w0.shape == spacing.shape == (0,)
+
+
+# ---------------------------------------------------------------------- extreme_betas_arrays
+def _close(got, ref):
+    """Agreement with the numpy result to :data:`TOL` (relative above 1), NaN where it is NaN."""
+    np.testing.assert_allclose(got, ref, rtol=TOL, atol=TOL, equal_nan=True)
+
+
+@pytest.mark.parametrize("name", WORLDS, ids=str)
+def test_extreme_betas_matches_numpy_on_real_inputs(name):
+    for others, sign, vals, rows, psi, pts, spacing, w0, ref in _captured(name)[1]:
+        _close(extreme_betas_arrays(others, sign, vals, rows, psi, pts, spacing, w0), ref)
+
+
+def _random_pairs(seed, K=80, n=256):
+    """Bodies sampled by :func:`sample_rows` and, per body, another squircle: a slightly moved,
+    turned and scaled copy (extremes near zero: refined), or a random one (mostly not)."""
+    rng = np.random.default_rng(seed)
+    P, psi, pts, w0, spacing = sample_rows(_random_rows(rng, K), n)
+    others = P.copy()
+    step = 10.0 ** rng.uniform(-7, 0, K)
+    others[:, CX:CY + 1] += step[:, None] * rng.standard_normal((K, 2))
+    th = np.arctan2(P[:, 3], P[:, 2]) + step * rng.standard_normal(K)
+    others[:, 2], others[:, 3] = np.cos(th), np.sin(th)
+    others[:, 4:6] *= 1.0 + step[:, None] * rng.standard_normal((K, 2))
+    others[K // 2:] = _random_rows(rng, K - K // 2)
+    sign = np.where(rng.uniform(size=K) < 0.5, 1.0, -1.0)
+    vals = nf._beta(others, pts)
+    return others, sign, vals, P, psi, pts, spacing, w0
+
+
+class _B:
+    """A stand-in for ``forest._Body`` (the fields ``_extreme_betas`` reads)."""
+
+    def __init__(self, row, psi, pts, spacing, w0):
+        self.row, self.psi, self.pts, self.spacing, self.w0 = row, psi, pts, float(spacing), float(w0)
+
+
+def _numpy_extremes(others, sign, vals, P, psi, pts, spacing, w0):
+    """``forest._extreme_betas`` on stacked fields."""
+    bodies = [_B(*f) for f in zip(P, psi, pts, spacing, w0)]
+    return nf._extreme_betas(bodies, others, sign, vals)
+
+
+def _refined(others, sign, vals, pts, spacing):
+    """Rows that ``_extreme_betas`` refines (its rule, in numpy)."""
+    va = (sign[:, None] * vals).min(axis=1)
+    gx, gy = beta_gradient_rows(others[:, None, :], pts[..., 0], pts[..., 1])
+    return ~(np.abs(va) > 2.0 * spacing * np.hypot(gx, gy).max(axis=1) + 1e-12)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_extreme_betas_matches_numpy_on_random_pairs(seed):
+    args = _random_pairs(seed)
+    got = extreme_betas_arrays(*args)
+    assert _refined(*args[:3], args[5], args[6]).sum() >= 20  # the pattern search is exercised
+    _close(got, _numpy_extremes(*args))
+
+
+def test_extreme_betas_centre_on_a_sample():
+    # another squircle centred on a sample: grad beta is NaN there (numpy: refine; no error)
+    others, sign, vals, P, psi, pts, spacing, w0 = _random_pairs(11, K=10)
+    others[:, CX:CY + 1] = pts[:, 7]
+    vals = nf._beta(others, pts)
+    got = extreme_betas_arrays(others, sign, vals, P, psi, pts, spacing, w0)
+    _close(got, _numpy_extremes(others, sign, vals, P, psi, pts, spacing, w0))
+    assert np.all(got[sign > 0] == -1.0)  # the centre is the minimum
+
+
+def test_extreme_betas_rows_are_independent():
+    args = _random_pairs(21, K=30)
+    batch = extreme_betas_arrays(*args)
+    for k in range(30):
+        assert extreme_betas_arrays(*(a[k:k + 1] for a in args))[0] == batch[k]
+
+
+def _check_dense(others, sign, vals, P, pts, spacing, got, m=16384):
+    """Refined rows: ``sign * got`` at most every dense-sample value of ``sign * beta`` (+1e-12);
+    the others: the sampled extreme, with the dense extreme's sign."""
+    dense = np.linspace(0.0, 2 * np.pi, m, endpoint=False)
+    f = sign[:, None] * nf._beta(others, point_at_rows(P, np.broadcast_to(dense, (len(P), m))))
+    fmin = f.min(axis=1)
+    g = sign * got
+    assert np.all(g <= (sign[:, None] * vals).min(axis=1))
+    ref = _refined(others, sign, vals, pts, spacing)
+    assert np.all(g[ref] <= fmin[ref] + 1e-12)
+    assert np.all(g[~ref] == (sign[:, None] * vals).min(axis=1)[~ref])
+    assert np.all(np.sign(g[~ref]) == np.sign(fmin[~ref]))
+    return ref.sum()
+
+
+def test_extreme_betas_dense_random():
+    refined = 0
+    for seed in range(4):
+        others, sign, vals, P, psi, pts, spacing, w0 = _random_pairs(seed)
+        got = extreme_betas_arrays(others, sign, vals, P, psi, pts, spacing, w0)
+        refined += _check_dense(others, sign, vals, P, pts, spacing, got)
+    assert refined >= 80
+
+
+@pytest.mark.parametrize("name", ["office", "cluttered20", (0, 20), (5, 20)], ids=str)
+def test_extreme_betas_dense_real(name):
+    for others, sign, vals, rows, psi, pts, spacing, w0, _ in _captured(name)[1]:
+        got = extreme_betas_arrays(others, sign, vals, rows, psi, pts, spacing, w0)
+        _check_dense(others, sign, vals, rows, pts, spacing, got)
+
+
+def test_extreme_betas_empty():
+    assert extreme_betas_arrays(np.zeros((0, 7)), np.zeros(0), np.zeros((0, 256)), np.zeros((0, 7)),
+                                np.zeros((0, 256)), np.zeros((0, 256, 2)), np.zeros(0), np.zeros(0)).shape == (0,)
+
+
+# ---------------------------------------------------------------------- build_forest
+def _same_forest(a, b):
+    """The same trees, and centres, depths, gaps and clearances within 1e-12."""
+    for f in ("source_index", "dropped", "parent", "children", "depth", "roots", "tree_of"):
+        assert getattr(a, f) == getattr(b, f), f
+    for f in ("center", "center_depth", "far_gap", "clearance"):
+        np.testing.assert_allclose(getattr(a, f), getattr(b, f), rtol=0, atol=1e-12, err_msg=f)
+
+
+@pytest.mark.parametrize("name", ["office", "cluttered20", (0, 20), (3, 12)], ids=str)
+def test_build_forest_with_kernels(name, monkeypatch):
+    world = _world(name)
+    nf.clear_cache()
+    ref = navigation.build_forest(world.workspace, world.obstacles)
+    monkeypatch.setattr(nf, "_sample_rows", sample_rows)
+    monkeypatch.setattr(nf, "_extreme_betas", _extreme_betas)
+    nf.clear_cache()
+    try:
+        got = navigation.build_forest(world.workspace, world.obstacles)
+    finally:
+        nf.clear_cache()
+    _same_forest(got, ref)
+
+
+# ---------------------------------------------------------------------- helpers
+def test_inline_hypot_matches_numpy():
+    import numba
+
+    from navigation._sample_kernel import _hypot
+
+    @numba.njit
+    def run(x, y, out):
+        for i in range(x.size):
+            v, ok = _hypot(x[i], y[i])
+            out[i] = v if ok else np.nan
+        return out
+
+    rng = np.random.default_rng(5)
+    x = np.concatenate((rng.standard_normal(200_000),
+                        rng.standard_normal(50_000) * 10.0 ** rng.integers(-300, 300, 50_000)))
+    y = np.concatenate((rng.standard_normal(200_000) * rng.uniform(0, 1, 200_000),
+                        rng.standard_normal(50_000) * 10.0 ** rng.integers(-300, 300, 50_000)))
+    x[:8], y[:8] = [0.0, 0.0, 3.0, -0.0, 1e-300, 1e300, np.inf, np.nan], [0.0, 5.0, -4.0, 2.0, 1e-301, 1e299, 1.0, 1.0]
+    got = run(x, y, np.empty_like(x))
+    ok = ~np.isnan(got)
+    assert ok[:4].all() and ok[8:200_000].all() and ok.sum() > 200_000 and not ok[4:8].any()
+    # bit-identical to glibc's hypot (the same algorithm), within an ulp of any other libm's
+    np.testing.assert_allclose(got[ok], np.hypot(x, y)[ok], rtol=2.3e-16, atol=0)
+
+
+@pytest.mark.parametrize("name", ["office", (0, 20)], ids=str)
+def test_max_grad_norm_matches_numpy(name):
+    from navigation._sample_kernel import _max_grad_norm
+
+    cases = [(o, pts) for o, _, _, _, _, pts, *_ in _captured(name)[1]]
+    others, _, _, _, _, pts, _, _ = _random_pairs(31, K=40)
+    others[:5, CX:CY + 1] = pts[:5, 3]  # centre on a sample: NaN
+    cases.append((others, pts))
+    for o, p in cases:
+        gx, gy = beta_gradient_rows(o[:, None, :], p[..., 0], p[..., 1])
+        ref = np.hypot(gx, gy).max(axis=1)
+        got = np.array([_max_grad_norm(o[k], p[k], np.empty(p.shape[1])) for k in range(len(o))])
+        np.testing.assert_array_equal(got, ref)
