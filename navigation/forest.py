@@ -80,6 +80,7 @@ import networkx as nx
 import numpy as np
 
 from ._geom_kernel import gap_bound_rows
+from ._lp_kernel import max_min_slack
 from ._pair_kernel import pair_distance
 from ._memo import Memo
 from .errors import ForestError
@@ -573,81 +574,23 @@ def _polygon_constraints(P: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]
     return a, (a * v).sum(-1), v
 
 
-def _soft_min(ax: np.ndarray, ay: np.ndarray, b: np.ndarray, q: np.ndarray, tau: np.ndarray):
-    """Soft minimum ``-tau log sum_k exp(-s_k / tau)`` of the slacks ``s = b - a . q`` per row,
-    its weights (the soft-min's gradient with respect to ``s``) and the exact minimum."""
-    s = b - ax * q[:, 0, None] - ay * q[:, 1, None]
-    m = s.min(axis=1)
-    z = np.exp(-(s - m[:, None]) / tau[:, None])
-    zs = z.sum(axis=1)
-    return m - tau * np.log(zs), z / zs[:, None], m
-
-
 def _max_min_slack(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarray, scale: np.ndarray, *,
                    stages: int = 4, steps: int = 10, grid: int = 5) -> tuple[np.ndarray, np.ndarray]:
     """Maximise ``t(q) = min_k (b_k - a_k . q)`` per row: the Chebyshev centre of the polygon of
     half-planes ``a (E, K, 2)`` (unit normals), ``b (E, K)``, i.e. a 3-variable linear program.
 
     Starts at the best point of a ``grid x grid`` grid over the box ``[lo, hi]`` (``(E, 2)``).
-    ``t`` is concave, and so is its soft minimum ``t_tau`` (:func:`_soft_min`;
-    ``t - tau log K <= t_tau <= t``), which is smooth with one maximiser. Newton steps on
-    ``t_tau`` (exact gradient ``-sum_k w_k a_k`` and Hessian ``-Cov_w(a) / tau``), backtracked
+    ``t`` is concave, and so is its soft minimum ``t_tau = -tau log sum_k exp(-s_k / tau)`` of
+    the slacks ``s_k`` (``t - tau log K <= t_tau <= t``), which is smooth with one maximiser.
+    Newton steps on ``t_tau`` (exact gradient ``-sum_k w_k a_k`` and Hessian ``-Cov_w(a) / tau``), backtracked
     until ``t_tau`` does not decrease and limited to ``scale``, follow ``tau`` from
     ``0.05 scale`` down by 8x per stage (``stages`` stages of at most ``steps`` steps); a row
     leaves a stage when its Newton step is below ``1e-6 scale``. Returns the points ``(E, 2)``
     and their exact ``t``, within about ``1e-4 scale`` of the optimum with the defaults (tested
-    against HiGHS): ample for a common centre, whose depth is then evaluated exactly.
+    against HiGHS): ample for a common centre, whose depth is then evaluated exactly. Compiled:
+    :func:`navigation._lp_kernel.max_min_slack`, row by row.
     """
-    E = len(a)
-    ax, ay = np.ascontiguousarray(a[..., 0]), np.ascontiguousarray(a[..., 1])
-    # the five weighted sums of a Newton step in one reduction: rows ax, ay, ax^2, ax ay, ay^2
-    moments = np.stack((ax, ay, ax * ax, ax * ay, ay * ay), axis=1)  # (E, 5, K)
-    lines = np.stack((ax, ay, b), axis=1)  # (E, 3, K): one gather per backtracking step
-    u = (np.arange(grid) + 0.5) / grid
-    gx, gy = np.meshgrid(u, u, indexing="ij")
-    px = lo[:, 0, None] + (hi - lo)[:, 0, None] * gx.ravel()[None]  # (E, grid^2)
-    py = lo[:, 1, None] + (hi - lo)[:, 1, None] * gy.ravel()[None]
-    t0 = (b[:, None, :] - ax[:, None, :] * px[:, :, None] - ay[:, None, :] * py[:, :, None]).min(axis=2)
-    k = np.argmax(t0, axis=1)
-    c = np.stack((px[np.arange(E), k], py[np.arange(E), k]), axis=1)
-    tau = 0.05 * scale
-    for _ in range(stages):
-        # trust radius: the optimum moves by a few of the previous stage's tau between stages;
-        # it grows after a full step and shrinks to the accepted length after backtracking, so
-        # Newton steps stretched along flat directions of the soft minimum are not halved anew
-        # at every iteration
-        radius = np.minimum(scale, 64.0 * tau)
-        f, w, _ = _soft_min(ax, ay, b, c, tau)
-        act = np.arange(E)
-        for _ in range(steps):
-            mom = (w[act][:, None, :] * moments[act]).sum(2)  # (k, 5)
-            gx_, gy_ = -mom[:, 0], -mom[:, 1]
-            cxx = mom[:, 2] - gx_ * gx_ + 1e-12
-            cxy = mom[:, 3] - gx_ * gy_
-            cyy = mom[:, 4] - gy_ * gy_ + 1e-12
-            step = (tau[act] / (cxx * cyy - cxy * cxy))[:, None] * \
-                np.stack((cyy * gx_ - cxy * gy_, cxx * gy_ - cxy * gx_), 1)
-            length = np.hypot(step[:, 0], step[:, 1])
-            keep = length > 1e-6 * scale[act]
-            act, step, length = act[keep], step[keep], length[keep]
-            if act.size == 0:
-                break
-            step *= np.minimum(1.0, radius[act] / length)[:, None]
-            todo, st, full = act, step, np.ones(len(act), bool)
-            for _ in range(30):  # backtracking
-                lp = lines[todo]
-                ft, wt, _ = _soft_min(lp[:, 0], lp[:, 1], lp[:, 2], c[todo] + st, tau[todo])
-                ok = ft >= f[todo]
-                acc = todo[ok]
-                c[acc] += st[ok]
-                f[acc], w[acc] = ft[ok], wt[ok]
-                taken = np.hypot(st[ok, 0], st[ok, 1])
-                radius[acc] = np.where(full[ok], np.minimum(2.0 * radius[acc], scale[acc]), taken)
-                todo, st, full = todo[~ok], 0.5 * st[~ok], np.zeros(int((~ok).sum()), bool)
-                if todo.size == 0:
-                    break
-        tau = 0.125 * tau
-    return c, _soft_min(ax, ay, b, c, tau)[2]
+    return max_min_slack(a, b, lo, hi, scale, stages=stages, steps=steps, grid=grid)
 
 
 def _common_centers(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, outside: np.ndarray

@@ -1,6 +1,8 @@
-"""Guarantees of the compiled Chebyshev-centre solver (navigation._lp_kernel): it returns what
-navigation.forest._max_min_slack returns, solves the common-centre linear program (checked
-against scipy's HiGHS), and leaves the forest unchanged when it replaces the numpy solver."""
+"""Guarantees of the compiled Chebyshev-centre solver (navigation._lp_kernel, behind
+navigation.forest._max_min_slack): it solves the common-centre linear program (checked against
+scipy's HiGHS) on the forest's own inputs and on random polygons, and a row's result does not
+depend on its batch. (When it replaced the numpy solver it agreed with it to 2e-11 scale on
+every captured world input.)"""
 
 from __future__ import annotations
 
@@ -28,12 +30,6 @@ PAD = 1e100  #: half-planes with a = 0 and b >= PAD are padding
 #: on the random worlds. With wider boxes (30-110) the solver (numpy and kernel alike) can stop
 #: short of the optimum (up to 0.1 scale seen), where rounding can also change its path.
 MAX_BOX = 20.0
-#: agreement with the numpy solver, relative to the row's scale (observed: below 2e-11; the two
-#: round exp and sums differently, which can flip an acceptance test decided by a rounding error)
-AGREE = 1e-9
-#: agreement with non-default stage, step and grid counts, which can stop before convergence
-#: where rounding can change the path (observed: 2e-6 with 3 steps per stage)
-AGREE_OPTIONS = 1e-5
 #: distance of t from the LP optimum, relative to the row's scale (the numpy docstring's bound)
 OPTIMAL = 1e-4
 
@@ -161,47 +157,18 @@ def _feasible_lps(a, b, lo, hi, scale):
     return a[ok], b[ok], lo[ok], hi[ok], scale[ok]
 
 
-class TestMatchesNumpy:
-    """The kernel returns the numpy solver's points and values."""
+def test_only_padding():
+    """A row of padding only: the first grid point (the centre of the first of 5 x 5 cells) and
+    ``t = 1e200``."""
+    a, b = np.zeros((1, 3, 2)), np.full((1, 3), 1e200)
+    lo, hi, scale = np.array([[0.0, 1.0]]), np.array([[2.0, 3.0]]), np.array([0.5])
+    c, t = max_min_slack(a, b, lo, hi, scale)
+    assert np.allclose(c, [[0.2, 1.2]], rtol=0, atol=1e-15) and np.array_equal(t, [1e200])
 
-    @pytest.mark.parametrize("kind", ["worlds", "thin"])
-    def test_captured_inputs(self, captured, kind):
-        assert captured[kind]
-        for a, b, lo, hi, scale in captured[kind]:
-            c0, t0 = F._max_min_slack(a, b, lo, hi, scale)
-            c1, t1 = max_min_slack(a, b, lo, hi, scale)
-            assert c1.shape == c0.shape and t1.shape == t0.shape
-            assert np.all(np.abs(c1 - c0).max(1) <= AGREE * scale)
-            assert np.all(np.abs(t1 - t0) <= AGREE * scale)
 
-    @pytest.mark.parametrize("seed", range(4))
-    def test_random_polygons(self, seed):
-        a, b, lo, hi, scale = _random_polygons(seed, 60)
-        c0, t0 = F._max_min_slack(a, b, lo, hi, scale)
-        c1, t1 = max_min_slack(a, b, lo, hi, scale)
-        assert np.all(np.abs(c1 - c0).max(1) <= AGREE * scale)
-        assert np.all(np.abs(t1 - t0) <= AGREE * scale)
-
-    def test_options(self, captured):
-        """Other stage, step and grid counts follow the numpy solver too."""
-        a, b, lo, hi, scale = captured["worlds"][0]
-        for kw in ({"stages": 2}, {"steps": 3}, {"grid": 1}, {"grid": 8, "stages": 5, "steps": 20}):
-            c0, t0 = F._max_min_slack(a, b, lo, hi, scale, **kw)
-            c1, t1 = max_min_slack(a, b, lo, hi, scale, **kw)
-            assert np.all(np.abs(c1 - c0).max(1) <= AGREE_OPTIONS * scale), kw
-            assert np.all(np.abs(t1 - t0) <= AGREE_OPTIONS * scale), kw
-
-    def test_only_padding(self):
-        """A row of padding only: the numpy solver's grid start and ``t = 1e200``."""
-        a, b = np.zeros((1, 3, 2)), np.full((1, 3), 1e200)
-        lo, hi, scale = np.array([[0.0, 1.0]]), np.array([[2.0, 3.0]]), np.array([0.5])
-        c0, t0 = F._max_min_slack(a, b, lo, hi, scale)
-        c1, t1 = max_min_slack(a, b, lo, hi, scale)
-        assert np.array_equal(c0, c1) and np.array_equal(t0, t1)
-
-    def test_empty_batch(self):
-        c, t = max_min_slack(np.zeros((0, 4, 2)), np.zeros((0, 4)), np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0))
-        assert c.shape == (0, 2) and t.shape == (0,)
+def test_empty_batch():
+    c, t = max_min_slack(np.zeros((0, 4, 2)), np.zeros((0, 4)), np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0))
+    assert c.shape == (0, 2) and t.shape == (0,)
 
 
 class TestLinearProgram:
@@ -259,25 +226,17 @@ class TestLinearProgram:
 
 @pytest.mark.slow
 class TestSweep:
-    """More worlds and polygons: agreement with the numpy solver and optimality."""
+    """More worlds and polygons: optimality."""
 
     def test_random_worlds(self):
         worlds = [random_forest_world(seed, n_obstacles=n, max_depth=4) for n, seed in SLOW_SIZES_SEEDS]
         for a, b, lo, hi, scale in _capture_worlds([(w.workspace, w.obstacles) for w in worlds]):
-            c0, t0 = F._max_min_slack(a, b, lo, hi, scale)
             c, t = max_min_slack(a, b, lo, hi, scale)
-            assert np.all(np.abs(c - c0).max(1) <= AGREE * scale)
-            assert np.all(np.abs(t - t0) <= AGREE * scale)
             TestLinearProgram._check(a, b, c, t, scale, OPTIMAL * scale)
 
     @pytest.mark.parametrize("seed", range(4, 30))
     def test_random_convex_polygons(self, seed):
-        a, b, lo, hi, scale = _random_polygons(seed, 60)
-        c0, t0 = F._max_min_slack(a, b, lo, hi, scale)
-        c, t = max_min_slack(a, b, lo, hi, scale)
-        assert np.all(np.abs(c - c0).max(1) <= AGREE * scale)
-        assert np.all(np.abs(t - t0) <= AGREE * scale)
-        a, b, lo, hi, scale = _feasible_lps(a, b, lo, hi, scale)
+        a, b, lo, hi, scale = _feasible_lps(*_random_polygons(seed, 60))
         c, t = max_min_slack(a, b, lo, hi, scale)
         TestLinearProgram._check(a, b, c, t, scale, OPTIMAL * scale)
 
@@ -300,32 +259,3 @@ class TestRowsAreIndependent:
         b2 = np.concatenate((b, np.full((len(a), 7), 1e200)), axis=1)
         c2, t2 = max_min_slack(a2, b2, lo, hi, scale)
         assert np.array_equal(c, c2) and np.array_equal(t, t2)
-
-
-class TestForestUnchanged:
-    """``build_forest`` with the kernel in place of the numpy solver builds the same forest."""
-
-    @pytest.mark.parametrize("world", ["office", "cluttered20", "random5", "random20", "random50", "thin"])
-    def test_same_forest(self, world, monkeypatch):
-        if world in ("office", "cluttered20"):
-            w = load_world(world_file(world))
-            cases = [(w.workspace, w.obstacles)]
-        elif world == "thin":
-            cases = [(WS, obs) for obs in _thin_worlds()]
-        else:
-            w = random_forest_world(0, n_obstacles=int(world[6:]), max_depth=4)
-            cases = [(w.workspace, w.obstacles)]
-        for workspace, obstacles in cases:
-            F.clear_cache()
-            ref = build_forest(workspace, obstacles)
-            with monkeypatch.context() as m:
-                m.setattr(F, "_max_min_slack", max_min_slack)
-                F.clear_cache()
-                new = build_forest(workspace, obstacles)
-            F.clear_cache()
-            assert (new.parent, new.children, new.roots, new.depth, new.tree_of) == \
-                (ref.parent, ref.children, ref.roots, ref.depth, ref.tree_of)
-            assert np.allclose(new.center, ref.center, rtol=0, atol=1e-9)
-            assert np.allclose(new.center_depth, ref.center_depth, rtol=0, atol=1e-9)
-            assert np.allclose(new.far_gap, ref.far_gap, rtol=0, atol=1e-9)
-            assert np.allclose(new.clearance, ref.clearance, rtol=0, atol=1e-9)
