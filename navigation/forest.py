@@ -81,10 +81,11 @@ import numpy as np
 
 from ._geom_kernel import gap_bound_rows
 from ._lp_kernel import max_min_slack
-from ._pair_kernel import pair_distance
 from ._memo import Memo
+from ._pair_kernel import pair_distance
+from ._sample_kernel import extreme_betas_arrays, sample_rows
 from .errors import ForestError
-from .geometry import (COS, CX, CY, HH, HW, S, SIN, Squircle, beta_gradient_rows, boundary_jet_rows,
+from .geometry import (COS, CX, CY, HH, HW, S, SIN, Squircle, boundary_jet_rows,
                        clear_geometry_cache, pack, point_at_rows, ray_length_packed,
                        signed_distance_rows)
 
@@ -310,50 +311,6 @@ def _beta(P: np.ndarray, q: np.ndarray) -> np.ndarray:
     return 0.5 * (x2 + y2 + np.sqrt(x2 * x2 + y2 * y2 + (2.0 - 4.0 * s * s) * x2 * y2)) - 1.0
 
 
-def _grid(m: int, dim: int) -> np.ndarray:
-    """Offsets of an ``m^dim`` grid over ``[-1, 1]^dim``, shape ``(m^dim, dim)``."""
-    axes = np.meshgrid(*([np.linspace(-1.0, 1.0, m)] * dim), indexing="ij")
-    return np.stack([a.ravel() for a in axes], axis=1)
-
-
-def _pattern_min(fun, c0: np.ndarray, w0: np.ndarray, f0: np.ndarray, *, m: int, shrink: float,
-                 tol: float, max_rounds: int = 200, rotation: float = 0.0,
-                 bounded: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """Vectorised grid pattern search, one independent problem per row.
-
-    Each round evaluates ``fun(rows, points)`` (``points (k, m^D, D)``, returns ``(k, m^D)``)
-    on a grid of half-widths ``w`` around the current point; a row moves to a better grid
-    point, or shrinks its grid by ``shrink`` when none is better (the classical rule, which
-    converges to a local minimum of a smooth function). Stops when every half-width is below
-    ``tol`` (absolute). Returns ``(points (K, D), values (K,))``.
-
-    With ``bounded``, ``fun(rows, points, best)`` also gets the rows' current values and may
-    return, for a point it can show is not better, any value ``>= best`` instead of the exact
-    one: the moves and shrinks, hence the result, are the same.
-    """
-    c, w, best = c0.astype(float).copy(), w0.astype(float).copy(), f0.astype(float).copy()
-    offs = _grid(m, c.shape[1])
-    if rotation:  # 2-D only: a rotated grid polls other directions (escapes ridge stalls)
-        cr, sr = math.cos(rotation), math.sin(rotation)
-        offs = offs @ np.array([[cr, sr], [-sr, cr]])
-    active = np.ones(len(c), bool)
-    for _ in range(max_rounds):
-        rows = np.nonzero(active)[0]
-        if rows.size == 0:
-            break
-        pts = c[rows, None, :] + w[rows, None, :] * offs[None, :, :]
-        v = fun(rows, pts, best[rows]) if bounded else fun(rows, pts)
-        k = np.argmin(v, axis=1)
-        vb = v[np.arange(len(rows)), k]
-        better = vb < best[rows]
-        moved = rows[better]
-        c[moved] = pts[better, k[better]]
-        best[moved] = vb[better]
-        w[rows[~better]] *= shrink
-        active[rows] = np.max(w[rows], axis=1) > tol
-    return c, best
-
-
 class _Body:
     """Boundary samples of one squircle (evenly spaced in arc length) with its packed row."""
 
@@ -375,32 +332,8 @@ def _sample_rows(P: np.ndarray, n: int):
     :meth:`Squircle.boundary_psi`: arc length on ``8 n`` chords, inverted by linear
     interpolation), their points, and per row the search window ``w0`` (1.5 x the largest
     angle gap) and the sample ``spacing`` (largest chord): ``(P, psi (K, n), pts (K, n, 2),
-    w0 (K,), spacing (K,))``, all rows at once."""
-    K, F = len(P), 8 * n + 1
-    fine = np.linspace(0.0, 2 * np.pi, F)
-    # chord lengths do not depend on position and rotation: the unit squircle's chord vectors
-    # (one per distinct s), scaled by the half-extents
-    svals, which = np.unique(P[:, S], return_inverse=True)
-    unit = np.zeros((len(svals), 7))
-    unit[:, COS] = unit[:, HW] = unit[:, HH] = 1.0
-    unit[:, S] = svals
-    du = np.diff(_xy(unit, np.broadcast_to(fine, (len(svals), F))), axis=1)[which]  # (K, F - 1, 2)
-    seg = np.hypot(P[:, HW, None] * du[..., 0], P[:, HH, None] * du[..., 1])
-    arc = np.concatenate((np.zeros((K, 1)), np.cumsum(seg, axis=1)), axis=1)
-    u = arc / arc[:, -1:]  # normalised arc length, 0 .. 1 per row
-    # invert all rows at once: row k's nodes shifted by 2k keep the flattened array sorted
-    off = 2.0 * np.arange(K)[:, None]
-    target = np.arange(n) / n
-    pos = np.searchsorted((u + off).ravel(), (target[None, :] + off).ravel(), side="right") - 1
-    idx = np.clip(pos.reshape(K, n) - F * np.arange(K)[:, None], 0, F - 2)
-    u0 = np.take_along_axis(u, idx, axis=1)
-    u1 = np.take_along_axis(u, idx + 1, axis=1)
-    frac = (target[None, :] - u0) / np.where(u1 > u0, u1 - u0, 1.0)
-    psi = fine[idx] + frac * (fine[1] - fine[0])
-    out = _xy(P, psi)
-    gaps = np.diff(np.concatenate((psi, psi[:, :1] + 2.0 * np.pi), axis=1), axis=1)
-    spacing = np.linalg.norm(out - np.roll(out, 1, axis=1), axis=2).max(axis=1)
-    return P, psi, out, 1.5 * gaps.max(axis=1), spacing
+    w0 (K,), spacing (K,))``. Compiled: :func:`navigation._sample_kernel.sample_rows`."""
+    return sample_rows(P, n)
 
 
 def _bodies(squircles: Sequence[Squircle], n: int) -> list["_Body"]:
@@ -521,33 +454,14 @@ def _extreme_betas(bodies: Sequence[_Body], others: np.ndarray, sign: np.ndarray
     beta can change between neighbouring samples (twice the sample spacing times the largest
     gradient norm of beta over the samples), it is returned as is: only its sign is used by the
     callers, and that sign is then certain. The other rows are refined together by a pattern
-    search on the boundary parameter.
+    search on the boundary parameter. Compiled:
+    :func:`navigation._sample_kernel.extreme_betas_arrays`.
     """
-    K = len(bodies)
-    if K == 0:
+    if len(bodies) == 0:
         return np.empty(0)
-    sign = np.asarray(sign, float)
-    v = sign[:, None] * vals
-    a = np.argmin(v, axis=1)
-    va = v[np.arange(K), a]
-    pts = np.stack([b.pts for b in bodies])
-    spacing = np.array([b.spacing for b in bodies])
-    gx, gy = beta_gradient_rows(others[:, None, :], pts[..., 0], pts[..., 1])
-    grad = np.hypot(gx, gy).max(axis=1)
-    out = sign * va
-    # NaN (a centre on the boundary): refine
-    todo = np.nonzero(~(np.abs(va) > 2.0 * spacing * grad + 1e-12))[0]
-    if todo.size:
-        P, Pb, sg = others[todo], np.stack([bodies[k].row for k in todo]), sign[todo]
-
-        def fun(rows, ps):
-            return sg[rows, None] * _beta(P[rows], _xy(Pb[rows], ps[..., 0]))
-
-        c0 = np.array([[bodies[k].psi[a[k]]] for k in todo])
-        w0 = np.array([[bodies[k].w0] for k in todo])
-        _, f = _pattern_min(fun, c0, w0, va[todo], m=9, shrink=0.3, tol=1e-13)
-        out[todo] = sg * f
-    return out
+    return extreme_betas_arrays(others, sign, vals, np.stack([b.row for b in bodies]), np.stack([b.psi for b in bodies]),
+                                np.stack([b.pts for b in bodies]), np.array([b.spacing for b in bodies]),
+                                np.array([b.w0 for b in bodies]))
 
 
 def _arcs_outside(values: np.ndarray) -> int:

@@ -1,7 +1,8 @@
-"""The numba kernels of navigation._sample_kernel against the numpy functions of navigation.forest
-(``_sample_rows``, ``_extreme_betas``) on inputs captured from real builds, and their
-mathematical properties: samples on the boundary, evenly spaced in arc length; extreme betas
-never worse than a dense sampling where they are refined, and of the right sign elsewhere."""
+"""The numba kernels of navigation._sample_kernel (behind navigation.forest's ``_sample_rows`` and
+``_extreme_betas``; bit-identical to the former numpy code on every captured build input) on
+inputs captured from real builds and random ones: samples on the boundary, evenly spaced in arc
+length; extreme betas never worse than a dense sampling where they are refined, and of the right
+sign elsewhere; rows independent of their batch."""
 
 from __future__ import annotations
 
@@ -18,8 +19,6 @@ from navigation.geometry import CX, CY, S, beta_gradient_rows, point_at_rows
 from .conftest import shared_world
 from .worldgen import random_forest_world
 
-TOL = 1e-13  # agreement with the numpy functions (observed: bit-identical)
-RANDOM = [(0, 20), (1, 5), (2, 8), (3, 12), (4, 16), (5, 20), (6, 10), (7, 14)]  # (seed, obstacles)
 
 
 def _world(name):
@@ -35,26 +34,15 @@ def _random_world(seed: int, n: int):
     return random_forest_world(seed, n_obstacles=n, max_depth=4)
 
 
-WORLDS = ["office", "cluttered20", *RANDOM]
-
-
 def _stack(bodies):
     """The stacked body fields ``(rows, psi, pts, spacing, w0)`` of :func:`extreme_betas_arrays`."""
     return (np.stack([b.row for b in bodies]), np.stack([b.psi for b in bodies]), np.stack([b.pts for b in bodies]),
             np.array([b.spacing for b in bodies]), np.array([b.w0 for b in bodies]))
 
 
-def _extreme_betas(bodies, others, sign, vals):
-    """``navigation.forest._extreme_betas`` through the kernel (as the lead wires it in)."""
-    if len(bodies) == 0:
-        return np.empty(0)
-    rows, psi, pts, spacing, w0 = _stack(bodies)
-    return extreme_betas_arrays(others, sign, vals, rows, psi, pts, spacing, w0)
-
-
 @functools.lru_cache(maxsize=None)
 def _captured(name):
-    """Arguments (and numpy results) of every ``_sample_rows`` and ``_extreme_betas`` call of a
+    """Arguments (and results) of every ``_sample_rows`` and ``_extreme_betas`` call of a
     cold ``build_forest`` of world ``name``."""
     world = _world(name)
     samples, extremes = [], []
@@ -92,31 +80,7 @@ def _random_rows(rng, K, s_max=0.99, aspect_min=0.2):
     return P
 
 
-def _assert_samples_close(a, b, scale):
-    """Two ``(P, psi, pts, w0, spacing)`` tuples agree to :data:`TOL` (points relative to ``scale``)."""
-    np.testing.assert_array_equal(a[0], b[0])
-    np.testing.assert_allclose(a[1], b[1], rtol=0, atol=TOL)
-    np.testing.assert_allclose(a[2], b[2], rtol=0, atol=TOL * scale)
-    np.testing.assert_allclose(a[3], b[3], rtol=0, atol=TOL)
-    np.testing.assert_allclose(a[4], b[4], rtol=0, atol=TOL * scale)
-
-
 # ---------------------------------------------------------------------- sample_rows
-@pytest.mark.parametrize("name", WORLDS, ids=str)
-def test_sample_rows_matches_numpy_on_real_inputs(name):
-    for P, n in _captured(name)[0]:
-        got = sample_rows(P, n)
-        assert got[1].shape == (len(P), n) and got[2].shape == (len(P), n, 2)
-        _assert_samples_close(got, nf._sample_rows(P, n), 1.0 + np.abs(P[:, :2]).max() + P[:, 4:6].max())
-
-
-@pytest.mark.parametrize("n", [16, 64, 256, 1024])
-def test_sample_rows_matches_numpy_on_random_rows(n):
-    P = _random_rows(np.random.default_rng(n), 60)
-    P[10:20, S] = P[0, S]  # rows of equal s share their unit chords
-    _assert_samples_close(sample_rows(P, n), nf._sample_rows(P, n), 10.0)
-
-
 def test_sample_rows_rows_are_independent():
     P = _random_rows(np.random.default_rng(3), 30)
     P[::3, S] = 0.99
@@ -160,17 +124,6 @@ def test_sample_rows_empty():
 
 
 # ---------------------------------------------------------------------- extreme_betas_arrays
-def _close(got, ref):
-    """Agreement with the numpy result to :data:`TOL` (relative above 1), NaN where it is NaN."""
-    np.testing.assert_allclose(got, ref, rtol=TOL, atol=TOL, equal_nan=True)
-
-
-@pytest.mark.parametrize("name", WORLDS, ids=str)
-def test_extreme_betas_matches_numpy_on_real_inputs(name):
-    for others, sign, vals, rows, psi, pts, spacing, w0, ref in _captured(name)[1]:
-        _close(extreme_betas_arrays(others, sign, vals, rows, psi, pts, spacing, w0), ref)
-
-
 def _random_pairs(seed, K=80, n=256):
     """Bodies sampled by :func:`sample_rows` and, per body, another squircle: a slightly moved,
     turned and scaled copy (extremes near zero: refined), or a random one (mostly not)."""
@@ -188,32 +141,11 @@ def _random_pairs(seed, K=80, n=256):
     return others, sign, vals, P, psi, pts, spacing, w0
 
 
-class _B:
-    """A stand-in for ``forest._Body`` (the fields ``_extreme_betas`` reads)."""
-
-    def __init__(self, row, psi, pts, spacing, w0):
-        self.row, self.psi, self.pts, self.spacing, self.w0 = row, psi, pts, float(spacing), float(w0)
-
-
-def _numpy_extremes(others, sign, vals, P, psi, pts, spacing, w0):
-    """``forest._extreme_betas`` on stacked fields."""
-    bodies = [_B(*f) for f in zip(P, psi, pts, spacing, w0)]
-    return nf._extreme_betas(bodies, others, sign, vals)
-
-
 def _refined(others, sign, vals, pts, spacing):
     """Rows that ``_extreme_betas`` refines (its rule, in numpy)."""
     va = (sign[:, None] * vals).min(axis=1)
     gx, gy = beta_gradient_rows(others[:, None, :], pts[..., 0], pts[..., 1])
     return ~(np.abs(va) > 2.0 * spacing * np.hypot(gx, gy).max(axis=1) + 1e-12)
-
-
-@pytest.mark.parametrize("seed", range(6))
-def test_extreme_betas_matches_numpy_on_random_pairs(seed):
-    args = _random_pairs(seed)
-    got = extreme_betas_arrays(*args)
-    assert _refined(*args[:3], args[5], args[6]).sum() >= 20  # the pattern search is exercised
-    _close(got, _numpy_extremes(*args))
 
 
 def test_extreme_betas_centre_on_a_sample():
@@ -222,8 +154,8 @@ def test_extreme_betas_centre_on_a_sample():
     others[:, CX:CY + 1] = pts[:, 7]
     vals = nf._beta(others, pts)
     got = extreme_betas_arrays(others, sign, vals, P, psi, pts, spacing, w0)
-    _close(got, _numpy_extremes(others, sign, vals, P, psi, pts, spacing, w0))
     assert np.all(got[sign > 0] == -1.0)  # the centre is the minimum
+    assert np.all(np.isfinite(got))
 
 
 def test_extreme_betas_rows_are_independent():
@@ -253,6 +185,7 @@ def test_extreme_betas_dense_random():
     for seed in range(4):
         others, sign, vals, P, psi, pts, spacing, w0 = _random_pairs(seed)
         got = extreme_betas_arrays(others, sign, vals, P, psi, pts, spacing, w0)
+        assert _refined(others, sign, vals, pts, spacing).sum() >= 20  # the pattern search is exercised
         refined += _check_dense(others, sign, vals, P, pts, spacing, got)
     assert refined >= 80
 
@@ -267,30 +200,6 @@ def test_extreme_betas_dense_real(name):
 def test_extreme_betas_empty():
     assert extreme_betas_arrays(np.zeros((0, 7)), np.zeros(0), np.zeros((0, 256)), np.zeros((0, 7)),
                                 np.zeros((0, 256)), np.zeros((0, 256, 2)), np.zeros(0), np.zeros(0)).shape == (0,)
-
-
-# ---------------------------------------------------------------------- build_forest
-def _same_forest(a, b):
-    """The same trees, and centres, depths, gaps and clearances within 1e-12."""
-    for f in ("source_index", "dropped", "parent", "children", "depth", "roots", "tree_of"):
-        assert getattr(a, f) == getattr(b, f), f
-    for f in ("center", "center_depth", "far_gap", "clearance"):
-        np.testing.assert_allclose(getattr(a, f), getattr(b, f), rtol=0, atol=1e-12, err_msg=f)
-
-
-@pytest.mark.parametrize("name", ["office", "cluttered20", (0, 20), (3, 12)], ids=str)
-def test_build_forest_with_kernels(name, monkeypatch):
-    world = _world(name)
-    nf.clear_cache()
-    ref = navigation.build_forest(world.workspace, world.obstacles)
-    monkeypatch.setattr(nf, "_sample_rows", sample_rows)
-    monkeypatch.setattr(nf, "_extreme_betas", _extreme_betas)
-    nf.clear_cache()
-    try:
-        got = navigation.build_forest(world.workspace, world.obstacles)
-    finally:
-        nf.clear_cache()
-    _same_forest(got, ref)
 
 
 # ---------------------------------------------------------------------- helpers
