@@ -79,6 +79,7 @@ from dataclasses import dataclass, field
 import networkx as nx
 import numpy as np
 
+from ._center_kernel import center_programs
 from ._geom_kernel import gap_bound_rows
 from ._lp_kernel import max_min_slack
 from ._memo import Memo
@@ -472,22 +473,6 @@ def _arcs_outside(values: np.ndarray) -> int:
     return int(np.count_nonzero(out & ~np.roll(out, 1)))
 
 
-def _polygon_constraints(P: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Half-planes ``a . q <= b`` of the polygons inscribed in the squircles ``P (K, 7)``.
-
-    The vertices are ``n`` boundary points at evenly spaced angles, counter-clockwise; the
-    polygon lies inside its (convex) squircle, so its depth ``min_k (b_k - a_k . q)`` (``a_k`` the
-    unit outward edge normals) is a lower bound of the depth in the squircle. Returns
-    ``(a (K, n, 2), b (K, n), vertices (K, n, 2))``; edge ``k`` runs from vertex ``k`` to ``k + 1``.
-    """
-    psi = np.broadcast_to(np.linspace(0.0, 2.0 * np.pi, n, endpoint=False), (len(P), n))
-    v = _xy(P, psi)
-    e = np.roll(v, -1, axis=1) - v
-    a = np.stack((e[..., 1], -e[..., 0]), axis=-1)
-    a /= np.linalg.norm(a, axis=-1, keepdims=True)
-    return a, (a * v).sum(-1), v
-
-
 def _max_min_slack(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarray, scale: np.ndarray, *,
                    stages: int = 4, steps: int = 10, grid: int = 5) -> tuple[np.ndarray, np.ndarray]:
     """Maximise ``t(q) = min_k (b_k - a_k . q)`` per row: the Chebyshev centre of the polygon of
@@ -513,7 +498,8 @@ def _common_centers(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, outsi
     and their exact depths ``min(depth in I, depth in J)`` (``distance outside J``).
 
     A child and its parent: the centre of the largest disc inside both inscribed polygons
-    (:func:`_polygon_constraints`, a linear program solved by :func:`_max_min_slack`); the
+    (:func:`navigation._center_kernel.center_programs`, a linear program solved by
+    :func:`_max_min_slack`); the
     disc lies in both squircles, and its radius is below the true largest one by at most the
     polygons' sagitta (sub-millimetre). A child of the workspace: ``O_I \\ W`` is not convex,
     but the points beyond a tangent line of the (convex) workspace at one of its boundary
@@ -529,72 +515,11 @@ def _common_centers(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, outsi
     sgn = np.where(outside, 1.0, -1.0)  # depth in J = sgn * signed distance to J
     PI = np.stack([bodies[i].row for i in I])
     PJ = np.stack([bodies[j].row for j in J])
-    aI, bI, vI = _polygon_constraints(PI, _POLY)
-    inner = np.nonzero(~outside)[0]
-    aJ, bJ, vJ = _polygon_constraints(PJ[inner], _POLY)
     ws = np.nonzero(outside)[0]
-    if ws.size:  # tangent lines of the workspace at its boundary samples inside O_I
-        body = bodies[J[ws[0]]]
-        vals = _beta(PI[ws], np.broadcast_to(body.pts, (len(ws),) + body.pts.shape))  # (k, n)
-        out_w = _beta(np.broadcast_to(body.row, (len(ws), 7)), vI[ws]) >= 0  # vertices of O_I outside W
-        picks = []
-        for r in range(len(ws)):
-            idx = np.nonzero(vals[r] < 0)[0]  # one arc: the child crosses the boundary once
-            if idx.size == 0:
-                idx = np.array([int(np.argmin(vals[r]))])
-            picks.append(np.unique(idx[np.linspace(0, len(idx) - 1, min(_WS_TANGENTS, len(idx))).round().astype(int)]))
-        psi = body.psi[np.concatenate(picks)]
-        x, dx, _ = boundary_jet_rows(np.broadcast_to(body.row, (len(psi), 7)), psi)
-        normal = np.stack((dx[:, 1], -dx[:, 0]), axis=1) / np.linalg.norm(dx, axis=1, keepdims=True)
-        h = (normal * x).sum(-1)
-        # along a (nearly) flat side the tangent lines nearly coincide: keep a line only where the
-        # normal turned by more than 0.05 rad since the last kept one (each line is a valid bound)
-        t0, lines = 0, []
-        for r in range(len(ws)):
-            kept = [t0]
-            for t in range(t0 + 1, t0 + len(picks[r])):
-                if float(normal[t] @ normal[kept[-1]]) < math.cos(0.05):
-                    kept.append(t)
-            lines.append(kept)
-            t0 += len(picks[r])
-    # One LP per problem, with only the edges whose bounding box meets the box that contains the
-    # intersection (the polygon O_I ∩ O_J is the intersection of the half-planes of its own edges,
-    # pieces of such edges, so the others are redundant and the optimum is unchanged).
-    owner, A, B, LO, HI, L = [], [], [], [], [], []
-
-    def near(v, lo, hi):
-        w = np.roll(v, -1, axis=0)
-        return np.all((np.minimum(v, w) <= hi) & (np.maximum(v, w) >= lo), axis=1)
-
-    for k, e in enumerate(inner):
-        lo = np.maximum(vI[e].min(0), vJ[k].min(0))
-        hi = np.maximum(np.minimum(vI[e].max(0), vJ[k].max(0)), lo)
-        ki, kj = near(vI[e], lo, hi), near(vJ[k], lo, hi)
-        owner.append(e)
-        A.append(np.concatenate((aI[e][ki], aJ[k][kj])))
-        B.append(np.concatenate((bI[e][ki], bJ[k][kj])))
-        LO.append(lo)
-        HI.append(hi)
-        L.append(min(PI[e, HW], PI[e, HH], PJ[inner[k], HW], PJ[inner[k], HH]))
-    for r, e in enumerate(ws):
-        o = out_w[r] | np.roll(out_w[r], 1) | np.roll(out_w[r], -1)
-        v = vI[e][o] if o.any() else vI[e]
-        lo, hi = v.min(0), v.max(0)
-        ki = near(vI[e], lo, hi)
-        for t in lines[r]:
-            owner.append(e)
-            A.append(np.concatenate((aI[e][ki], -normal[t][None])))
-            B.append(np.concatenate((bI[e][ki], [-h[t]])))
-            LO.append(lo)
-            HI.append(hi)
-            L.append(min(PI[e, HW], PI[e, HH]))
-    # pad to a common width with void half-planes (a = 0, b = 1e200: zero soft-min weight), so a
-    # row's result does not depend on its batch (the memo relies on that)
-    width = max(len(b) for b in B)
-    A = np.stack([np.concatenate((a, np.zeros((width - len(a), 2)))) for a in A])
-    B = np.stack([np.concatenate((b, np.full(width - len(b), 1e200))) for b in B])
-    owner = np.asarray(owner)
-    c, t = _max_min_slack(A, B, np.array(LO), np.array(HI), np.array(L))
+    wsb = bodies[J[ws[0]]] if ws.size else None
+    A, B, LO, HI, L, owner = center_programs(PI, PJ, outside, *((wsb.row, wsb.pts, wsb.psi) if wsb is not None else (None,) * 3),
+                                             n=_POLY, n_tangents=_WS_TANGENTS, turn=0.05)
+    c, t = _max_min_slack(A, B, LO, HI, L)
     order = np.lexsort((-t, owner))  # per owner, the largest t first
     first = order[np.concatenate(([True], owner[order][1:] != owner[order][:-1]))]
     c = c[first][np.argsort(owner[first])]

@@ -8,6 +8,7 @@ import time
 import numpy as np
 import pytest
 
+from navigation._center_kernel import polygon_constraints
 from navigation.errors import ForestError
 from navigation.forest import NO_PARENT, WORKSPACE, Forest, build_forest, common_center, separation
 from navigation.geometry import Squircle, pack
@@ -570,7 +571,7 @@ class TestFastPathsMatchReferences:
         for _ in range(40):
             a = Squircle(tuple(rng.uniform(-0.5, 0.5, 2)), rng.uniform(0.2, 3), rng.uniform(0.1, 1), rng.uniform(0, 3))
             b = Squircle(tuple(rng.uniform(-0.5, 0.5, 2)), rng.uniform(0.2, 3), rng.uniform(0.1, 1), rng.uniform(0, 3))
-            na, nb, v = F._polygon_constraints(pack([a, b]), 64)
+            na, nb, v = polygon_constraints(pack([a, b]), 64)
             A, B = np.concatenate(na), np.concatenate(nb)
             res = linprog([0, 0, -1], A_ub=np.column_stack((A, np.ones(len(A)))), b_ub=B,
                           bounds=[(None, None)] * 3, method="highs")

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 import navigation.forest as F
+from navigation._center_kernel import polygon_constraints
 from navigation._lp_kernel import max_min_slack
 from navigation.forest import build_forest, separation
 from navigation.geometry import Squircle, pack
@@ -213,7 +214,7 @@ class TestLinearProgram:
         for _ in range(40):
             p = Squircle(tuple(rng.uniform(-0.5, 0.5, 2)), rng.uniform(0.2, 3), rng.uniform(0.1, 1), rng.uniform(0, 3))
             q = Squircle(tuple(rng.uniform(-0.5, 0.5, 2)), rng.uniform(0.2, 3), rng.uniform(0.1, 1), rng.uniform(0, 3))
-            na, nb, v = F._polygon_constraints(pack([p, q]), 64)
+            na, nb, v = polygon_constraints(pack([p, q]), 64)
             A.append(np.concatenate(na))
             B.append(np.concatenate(nb))
             LO.append(np.maximum(v[0].min(0), v[1].min(0)))
