@@ -817,38 +817,36 @@ def _clearances(parent: Sequence[int], depth: Sequence[int], roots: Sequence[int
     equals the minimum over all exact distances.
     """
     m = len(parent)
-    depth = np.asarray(depth)
-    others = []
-    for i in range(m):
-        if parent[i] == NO_PARENT:
-            S = [k for k in roots if k != i]
-        else:
-            S = [k for k in np.nonzero(depth <= depth[i])[0] if k != i and k != parent[i]]
-        others.append(np.asarray(S, dtype=np.intp))
-    on_wall = np.array([p != WORKSPACE for p in parent], bool)  # workspace term: wall (else far gap)
-
-    def base(i: int) -> float:
-        return wall[i] if on_wall[i] else far[i]
-
+    depth = np.asarray(depth, dtype=np.intp)
+    par = np.asarray(parent, dtype=np.intp)
+    # relevant[i, k]: k is in obstacle i's set (roots: the other roots; others: every obstacle
+    # at most as deep, except itself and its parent)
+    relevant = depth[None, :] <= depth[:, None]
+    relevant[np.arange(m), np.arange(m)] = False
+    nonroot = np.nonzero(par != NO_PARENT)[0]
+    inner = nonroot[par[nonroot] >= 0]
+    relevant[inner, par[inner]] = False
+    rows = np.asarray([i for i in range(m) if parent[i] == NO_PARENT], dtype=np.intp)
+    if rows.size:
+        relevant[rows] = False
+        relevant[np.ix_(rows, np.asarray(roots, dtype=np.intp))] = True
+        relevant[rows, rows] = False
+    on_wall = par != WORKSPACE  # workspace term: wall (else far gap)
+    idx = np.arange(m)
     while True:
-        pairs, walls = [], []
-        for i, S in enumerate(others):
-            k = S[np.argmin(bound[i, S])] if S.size else -1
-            vb = bound[i, k] if k >= 0 else math.inf
-            if vb < base(i):
-                if not exact[i, k]:
-                    pairs.append((min(i, k), max(i, k)))
-            elif on_wall[i] and not wall_exact[i]:
-                walls.append(i)
+        base = np.where(on_wall, wall, far)
+        masked = np.where(relevant, bound, np.inf)
+        k = np.argmin(masked, axis=1) if m else np.zeros(0, np.intp)
+        vb = masked[idx, k]
+        need = vb < base
+        pairs = [(min(i, j), max(i, j)) for i, j in zip(idx[need & ~exact[idx, k]].tolist(),
+                                                        k[need & ~exact[idx, k]].tolist())]
+        walls = np.nonzero(~need & on_wall & ~wall_exact)[0].tolist()
         if not pairs and not walls:
             break
         settle(pairs)
         settle_walls(walls)
-    out = np.array([base(i) for i in range(m)], dtype=float)
-    for i, S in enumerate(others):
-        if S.size:
-            out[i] = min(out[i], float(bound[i, S].min()))
-    return out
+    return np.minimum(np.where(on_wall, wall, far), np.where(relevant, bound, np.inf).min(axis=1, initial=np.inf))
 
 
 # ---------------------------------------------------------------------- construction
