@@ -102,16 +102,20 @@ def _signed_distance_kernel(P, q, n, stages, m):
                 hi = ((j + 1) % n) * dpsi if j < n - 1 else 2.0 * math.pi
                 for _ in range(stages):
                     kb, vb = 0, math.inf
+                    # the m + 1 angles lo + t h by rotation (two sines and cosines per stage;
+                    # the recurrence's rounding, ~m ulps of the angle, moves no point by 1e-15)
+                    h = (hi - lo) / m
+                    c, s = math.cos(lo), math.sin(lo)
+                    ch, sh = math.cos(h), math.sin(h)
                     for t in range(m + 1):
-                        ps = lo + (hi - lo) * (t / m)
-                        px, py = point_xy(P, k, ps)
+                        px, py = point_xy_cs(P, k, c, s)
                         v = (px - qx) ** 2 + (py - qy) ** 2
                         if v < vb:
                             kb, vb = t, v
+                        c, s = c * ch - s * sh, s * ch + c * sh
                     best = min(best, vb)
-                    step = (hi - lo) / m
-                    centre = lo + (hi - lo) * (kb / m)
-                    lo, hi = centre - step, centre + step
+                    centre = lo + kb * h
+                    lo, hi = centre - h, centre + h
         dist = math.sqrt(best)
         out[k] = -dist if _beta(P, k, qx, qy) < 0.0 else dist
     return out
