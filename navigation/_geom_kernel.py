@@ -11,6 +11,8 @@ small arrays (the forest construction calls these on a few dozen rows at a time)
   nested sampling);
 * :func:`ray_length_rows`: :func:`navigation.geometry.ray_length_packed` (exact ray lengths,
   paper 001 eq. 15-16: monotone Newton on the gauge ``sqrt(beta + 1)``);
+* :func:`far_gap_rows`: :func:`navigation.forest._far_gaps` (the room beyond a workspace child
+  along the rays from its common centre);
 * :func:`gap_bound_rows`: :func:`navigation.forest._gap_bound_rows` (lower bounds of the
   distance between two squircles from their bounding rectangles and discs).
 
@@ -27,7 +29,7 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["point_xy", "point_xy_cs", "signed_distance_rows", "ray_length_rows", "gap_bound_rows"]
+__all__ = ["point_xy", "point_xy_cs", "beta_rows", "signed_distance_rows", "ray_length_rows", "far_gap_rows", "gap_bound_rows"]
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -61,6 +63,28 @@ def _beta(P, k, qx, qy):
     x2, y2 = x * x, y * y
     s = P[k, 6]
     return 0.5 * (x2 + y2 + math.sqrt(x2 * x2 + y2 * y2 + (2.0 - 4.0 * s * s) * x2 * y2)) - 1.0
+
+
+@numba.njit(**_JIT)
+def _beta_kernel(P, q):
+    K, n = q.shape[0], q.shape[1]
+    out = np.empty((K, n))
+    last = P.shape[0] - 1
+    for k in range(K):
+        r = min(k, last)
+        for j in range(n):
+            out[k, j] = _beta(P, r, q[k, j, 0], q[k, j, 1])
+    return out
+
+
+def beta_rows(P: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Obstacle function of packed rows ``P (K, 7)`` (or one row, ``(1, 7)``, for all) at the
+    points ``q (K, ..., 2)``: ``(K, ...)``, the formula of :func:`navigation.forest._beta`."""
+    q = np.asarray(q, dtype=float)
+    P = np.ascontiguousarray(P, dtype=float).reshape(-1, 7)
+    K = q.shape[0]
+    out = _beta_kernel(P, np.ascontiguousarray(q).reshape(K, -1, 2))
+    return out.reshape(q.shape[:-1])
 
 
 @numba.njit(**_JIT)
@@ -131,59 +155,92 @@ def signed_distance_rows(P: np.ndarray, q: np.ndarray, n: int = 128, stages: int
     return _signed_distance_kernel(P, q, int(n), int(stages), int(m))
 
 
+@numba.njit(inline="always", **_JIT)
+def _ray(p, k, ox, oy, dx_, dy_, en):
+    """Exact distance from ``(ox, oy)`` along the unit direction ``(dx_, dy_)`` to the boundary
+    of row ``p[k]``: the exit, or the entry where ``en`` (see :func:`ray_length_rows`)."""
+    c, sn = p[k, 2], p[k, 3]
+    ihw, ihh = 1.0 / p[k, 4], 1.0 / p[k, 5]
+    dx, dy = ox - p[k, 0], oy - p[k, 1]
+    x0 = (dx * c + dy * sn) * ihw
+    y0 = (dy * c - dx * sn) * ihh
+    ax = (dx_ * c + dy_ * sn) * ihw
+    ay = (dy_ * c - dx_ * sn) * ihh
+    # crossing of the bounding rectangle [-1, 1]^2: beyond the wanted root
+    if ax == 0.0:
+        tx_lo, tx_hi = -math.inf, math.inf
+    else:
+        t1, t2 = (-1.0 - x0) / ax, (1.0 - x0) / ax
+        tx_lo, tx_hi = min(t1, t2), max(t1, t2)
+    if ay == 0.0:
+        ty_lo, ty_hi = -math.inf, math.inf
+    else:
+        t1, t2 = (-1.0 - y0) / ay, (1.0 - y0) / ay
+        ty_lo, ty_hi = min(t1, t2), max(t1, t2)
+    if en:
+        r = max(max(tx_lo, ty_lo), 0.0)
+        hi = r + 2.0 * math.hypot(p[k, 4], p[k, 5])
+        sax, say = -ax, -ay
+    else:
+        r = min(tx_hi, ty_hi)
+        hi = r
+        sax, say = ax, ay
+    kk = 2.0 - 4.0 * p[k, 6] ** 2
+    for _ in range(100):
+        x = x0 + r * ax
+        y = y0 + r * ay
+        x2, y2 = x * x, y * y
+        root = math.sqrt(max(x2 * (x2 + kk * y2) + y2 * y2, 1e-300))
+        g2 = 0.5 * (x2 + y2 + root)
+        half = 0.5 / root
+        fp = x * sax * ((x2 + x2 + kk * y2) * half + 1.0) + y * say * ((y2 + y2 + kk * x2) * half + 1.0)
+        g = math.sqrt(g2)
+        r_new = r
+        if fp > 0.0 and g2 >= 1.0:
+            step = (g2 - 1.0) * (g + g) / ((g + 1.0) * fp)
+            r_new = r + step if en else r - step
+        r_new = min(max(r_new, 0.0), hi)
+        if abs(r_new - r) <= 4e-16 * (1.0 + r):
+            return r_new
+        r = r_new
+    return r
+
+
 @numba.njit(**_JIT)
 def _ray_length_kernel(p, o, d, entry):
     K = p.shape[0]
     out = np.empty(K)
     for k in range(K):
-        c, sn = p[k, 2], p[k, 3]
-        ihw, ihh = 1.0 / p[k, 4], 1.0 / p[k, 5]
-        dx, dy = o[k, 0] - p[k, 0], o[k, 1] - p[k, 1]
-        x0 = (dx * c + dy * sn) * ihw
-        y0 = (dy * c - dx * sn) * ihh
-        ax = (d[k, 0] * c + d[k, 1] * sn) * ihw
-        ay = (d[k, 1] * c - d[k, 0] * sn) * ihh
-        # crossing of the bounding rectangle [-1, 1]^2: beyond the wanted root
-        if ax == 0.0:
-            tx_lo, tx_hi = -math.inf, math.inf
-        else:
-            t1, t2 = (-1.0 - x0) / ax, (1.0 - x0) / ax
-            tx_lo, tx_hi = min(t1, t2), max(t1, t2)
-        if ay == 0.0:
-            ty_lo, ty_hi = -math.inf, math.inf
-        else:
-            t1, t2 = (-1.0 - y0) / ay, (1.0 - y0) / ay
-            ty_lo, ty_hi = min(t1, t2), max(t1, t2)
-        en = entry[k]
-        if en:
-            r = max(max(tx_lo, ty_lo), 0.0)
-            hi = r + 2.0 * math.hypot(p[k, 4], p[k, 5])
-            sax, say = -ax, -ay
-        else:
-            r = min(tx_hi, ty_hi)
-            hi = r
-            sax, say = ax, ay
-        kk = 2.0 - 4.0 * p[k, 6] ** 2
-        for _ in range(100):
-            x = x0 + r * ax
-            y = y0 + r * ay
-            x2, y2 = x * x, y * y
-            root = math.sqrt(max(x2 * (x2 + kk * y2) + y2 * y2, 1e-300))
-            g2 = 0.5 * (x2 + y2 + root)
-            half = 0.5 / root
-            fp = x * sax * ((x2 + x2 + kk * y2) * half + 1.0) + y * say * ((y2 + y2 + kk * x2) * half + 1.0)
-            g = math.sqrt(g2)
-            r_new = r
-            if fp > 0.0 and g2 >= 1.0:
-                step = (g2 - 1.0) * (g + g) / ((g + 1.0) * fp)
-                r_new = r + step if en else r - step
-            r_new = min(max(r_new, 0.0), hi)
-            if abs(r_new - r) <= 4e-16 * (1.0 + r):
-                r = r_new
-                break
-            r = r_new
-        out[k] = r
+        out[k] = _ray(p, k, o[k, 0], o[k, 1], d[k, 0], d[k, 1], entry[k])
     return out
+
+
+@numba.njit(**_JIT)
+def _far_gap_kernel(P, centres, ws, cs, sn):
+    K = P.shape[0]
+    out = np.empty(K)
+    for k in range(K):
+        ox, oy = centres[k, 0], centres[k, 1]
+        best = math.inf
+        for j in range(cs.shape[0]):
+            r_leaf = _ray(P, k, ox, oy, cs[j], sn[j], False)
+            if _beta(ws, 0, ox + r_leaf * cs[j], oy + r_leaf * sn[j]) < 0.0:
+                best = min(best, _ray(ws, 0, ox, oy, cs[j], sn[j], False) - r_leaf)
+        out[k] = best
+    return out
+
+
+def far_gap_rows(P: np.ndarray, centres: np.ndarray, ws_row: np.ndarray, n: int) -> np.ndarray:
+    """Per row of ``P (K, 7)`` (children of the workspace ``ws_row``), on ``n`` rays from
+    ``centres (K, 2)`` in evenly spaced directions, those whose exit from the child lies inside
+    the workspace: the smallest difference between the workspace's exit distance and the
+    child's (exact ray lengths); ``inf`` where no ray reaches into the workspace."""
+    P = np.ascontiguousarray(P, dtype=float).reshape(-1, 7)
+    if len(P) == 0:
+        return np.empty(0)
+    a = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
+    return _far_gap_kernel(P, np.ascontiguousarray(centres, dtype=float).reshape(-1, 2),
+                           np.ascontiguousarray(ws_row, dtype=float).reshape(1, 7), np.cos(a), np.sin(a))
 
 
 def ray_length_rows(p: np.ndarray, o: np.ndarray, d: np.ndarray, entry: np.ndarray | None = None) -> np.ndarray:

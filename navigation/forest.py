@@ -80,14 +80,14 @@ import networkx as nx
 import numpy as np
 
 from ._center_kernel import center_programs
-from ._geom_kernel import gap_bound_rows
+from ._geom_kernel import beta_rows, far_gap_rows, gap_bound_rows
 from ._lp_kernel import max_min_slack
 from ._memo import Memo
 from ._pair_kernel import pair_distance
 from ._sample_kernel import extreme_betas_arrays, sample_rows
 from .errors import ForestError
-from .geometry import (COS, CX, CY, HH, HW, S, SIN, Squircle, boundary_jet_rows,
-                       clear_geometry_cache, pack, point_at_rows, ray_length_packed,
+from .geometry import (COS, CX, CY, HH, HW, SIN, Squircle, boundary_jet_rows,
+                       clear_geometry_cache, pack, point_at_rows,
                        signed_distance_rows)
 
 __all__ = ["WORKSPACE", "NO_PARENT", "Forest", "build_forest", "check_forest", "separation", "common_center",
@@ -287,12 +287,6 @@ class Forest:
 
 
 # ---------------------------------------------------------------------- vectorised primitives
-def _cols(P: np.ndarray, ndim: int) -> np.ndarray:
-    """Packed rows ``P (K, 7)`` as ``(7, K, 1, ...)``: ``_cols(P, n)[k]`` is column ``k``
-    shaped to broadcast against ``(K, ...)`` arrays of ``ndim`` dimensions."""
-    return P.T.reshape((7, -1) + (1,) * (ndim - 1))
-
-
 def _xy(P: np.ndarray, psi: np.ndarray) -> np.ndarray:
     """Boundary points ``(K, ..., 2)`` of packed squircles ``P (K, 7)`` at angles ``psi (K, ...)``:
     :func:`~navigation.geometry.point_at_rows`."""
@@ -300,16 +294,9 @@ def _xy(P: np.ndarray, psi: np.ndarray) -> np.ndarray:
 
 
 def _beta(P: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """Obstacle function of packed squircles ``P (K, 7)`` at points ``q (K, ..., 2)``."""
-    C = _cols(P, q.ndim - 1)
-    dx = q[..., 0] - C[CX]
-    dy = q[..., 1] - C[CY]
-    c, sn = C[COS], C[SIN]
-    x = (dx * c + dy * sn) / C[HW]
-    y = (dy * c - dx * sn) / C[HH]
-    x2, y2 = x * x, y * y
-    s = C[S]
-    return 0.5 * (x2 + y2 + np.sqrt(x2 * x2 + y2 * y2 + (2.0 - 4.0 * s * s) * x2 * y2)) - 1.0
+    """Obstacle function of packed squircles ``P (K, 7)`` (or one, ``(1, 7)``) at points
+    ``q (K, ..., 2)``: :func:`navigation._geom_kernel.beta_rows`."""
+    return beta_rows(P, q)
 
 
 class _Body:
@@ -465,12 +452,11 @@ def _extreme_betas(bodies: Sequence[_Body], others: np.ndarray, sign: np.ndarray
                                 np.array([b.w0 for b in bodies]))
 
 
-def _arcs_outside(values: np.ndarray) -> int:
-    """Number of contiguous circular runs of ``values > 0``."""
+def _arcs_outside(values: np.ndarray) -> np.ndarray:
+    """Per row of ``values (K, n)``: the number of contiguous circular runs of ``values > 0``
+    (1 where every value is positive)."""
     out = values > 0
-    if out.all():
-        return 1
-    return int(np.count_nonzero(out & ~np.roll(out, 1)))
+    return np.where(out.all(axis=1), 1, np.count_nonzero(out & ~np.roll(out, 1, axis=1), axis=1))
 
 
 def _max_min_slack(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarray, scale: np.ndarray, *,
@@ -692,9 +678,10 @@ def _workspace_relations(bodies: Sequence[_Body], ws: _Body) -> list[str]:
         for r, e in zip(outer, ext):
             if e > 0:
                 rel[r] = "covers" if np.all(_beta(sub[r].row[None], ws.pts[None])[0] <= 0) else "outside"
+    arcs = _arcs_outside(vals)
     for r in range(len(sub)):
         if not rel[r]:
-            rel[r] = "crosses-twice" if _arcs_outside(vals[r]) > 1 else "crosses"
+            rel[r] = "crosses-twice" if arcs[r] > 1 else "crosses"
         out[todo[r]] = rel[r]
         _PAIRS.put(keys[todo[r]], rel[r])
     return out
@@ -770,27 +757,15 @@ def _far_gaps(bodies: Sequence[_Body], I: Sequence[int], W: int, centres: np.nda
 
     On ``n`` rays from the centre (evenly spaced directions), those whose exit from the child
     lies inside the workspace: the workspace exit distance minus the child's exit distance
-    (exact ray lengths); the minimum over them (memoised per child and workspace; the children
-    not memoised are traced together, two ray-length calls for all of them).
+    (exact ray lengths); the minimum over them (memoised per child and workspace). Compiled:
+    :func:`navigation._geom_kernel.far_gap_rows`.
     """
     ws = bodies[W]
     keys = [("far", bodies[i].sq, ws.sq) for i in I]
     out = np.array([_PAIRS.get(k) for k in keys], dtype=float)  # None -> nan
     todo = np.nonzero(np.isnan(out))[0]
     if todo.size:
-        k = todo.size
-        a = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
-        u = np.tile(np.stack((np.cos(a), np.sin(a)), axis=1), (k, 1))  # (k n, 2)
-        o = np.repeat(np.asarray(centres, float)[todo], n, axis=0)
-        rows = np.repeat(np.stack([bodies[I[t]].row for t in todo]), n, axis=0)
-        r_leaf = ray_length_packed(rows, o, u)
-        tip = o + r_leaf[:, None] * u
-        inside = _beta(ws.row[None], tip[None])[0] < 0
-        gap = np.full(k * n, np.inf)
-        if inside.any():
-            r_exit = ray_length_packed(np.broadcast_to(ws.row, (int(inside.sum()), 7)), o[inside], u[inside])
-            gap[inside] = r_exit - r_leaf[inside]
-        g = gap.reshape(k, n).min(axis=1)
+        g = far_gap_rows(np.stack([bodies[I[t]].row for t in todo]), np.asarray(centres, float)[todo], ws.row, n)
         for t, v in zip(todo, g):
             out[t] = v
             _PAIRS.put(keys[t], float(v))
