@@ -219,10 +219,32 @@ def _ray_length_kernel(p, o, d, entry):
 def _far_gap_kernel(P, centres, ws, cs, sn):
     K = P.shape[0]
     out = np.empty(K)
+    c, s = ws[0, 2], ws[0, 3]
+    ihw, ihh = 1.0 / ws[0, 4], 1.0 / ws[0, 5]
     for k in range(K):
         ox, oy = centres[k, 0], centres[k, 1]
+        dx, dy = ox - ws[0, 0], oy - ws[0, 1]
+        x0 = (dx * c + dy * s) * ihw
+        y0 = (dy * c - dx * s) * ihh
         best = math.inf
         for j in range(cs.shape[0]):
+            # a ray that misses the workspace's bounding rectangle (slab test in its frame, with
+            # a margin) cannot end its leaf exit inside the workspace: skip it
+            ax = (cs[j] * c + sn[j] * s) * ihw
+            ay = (sn[j] * c - cs[j] * s) * ihh
+            lo, hi = 0.0, math.inf
+            if ax != 0.0:
+                t1, t2 = (-1.0 - 1e-9 - x0) / ax, (1.0 + 1e-9 - x0) / ax
+                lo, hi = max(lo, min(t1, t2)), min(hi, max(t1, t2))
+            elif abs(x0) > 1.0 + 1e-9:
+                continue
+            if ay != 0.0:
+                t1, t2 = (-1.0 - 1e-9 - y0) / ay, (1.0 + 1e-9 - y0) / ay
+                lo, hi = max(lo, min(t1, t2)), min(hi, max(t1, t2))
+            elif abs(y0) > 1.0 + 1e-9:
+                continue
+            if lo > hi:
+                continue
             r_leaf = _ray(P, k, ox, oy, cs[j], sn[j], False)
             if _beta(ws, 0, ox + r_leaf * cs[j], oy + r_leaf * sn[j]) < 0.0:
                 best = min(best, _ray(ws, 0, ox, oy, cs[j], sn[j], False) - r_leaf)
