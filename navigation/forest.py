@@ -73,6 +73,7 @@ Symbols
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -825,6 +826,49 @@ def _clearances(parent: Sequence[int], depth: Sequence[int], roots: Sequence[int
 
 
 # ---------------------------------------------------------------------- construction
+def _bfs_edges(adj: dict[int, list[int]], root: int):
+    """Edges ``(parent, child)`` of a breadth-first search of the graph ``adj`` from ``root``,
+    neighbours in increasing order (``networkx.bfs_edges(G, root, sort_neighbors=sorted)``)."""
+    seen = {root}
+    queue = deque([root])
+    while queue:
+        u = queue.popleft()
+        for v in sorted(adj[u]):
+            if v not in seen:
+                seen.add(v)
+                queue.append(v)
+                yield u, v
+
+
+def _eccentricity(adj: dict[int, list[int]], source: int) -> int:
+    """Largest number of edges from ``source`` to a node of its (tree) component."""
+    far, level, frontier, seen = 0, 0, [source], {source}
+    while frontier:
+        nxt = [v for u in frontier for v in adj[u] if v not in seen]
+        seen.update(nxt)
+        if nxt:
+            level += 1
+            far = level
+        frontier = nxt
+    return far
+
+
+def _components(adj: dict[int, list[int]]) -> list[list[int]]:
+    """Connected components of the graph ``adj``, each sorted, ordered by their first node."""
+    seen: set[int] = set()
+    out = []
+    for s in adj:
+        if s in seen:
+            continue
+        comp = [s]
+        seen.add(s)
+        for _, v in _bfs_edges(adj, s):
+            comp.append(v)
+            seen.add(v)
+        out.append(sorted(comp))
+    return sorted(out, key=lambda c: c[0])
+
+
 def _plural(items: Sequence[int]) -> str:
     """``"0, 1 and the workspace boundary"``: input indices, ``-1`` for the boundary (last)."""
     names = [str(k) for k in sorted(items) if k != -1] + (["the workspace boundary"] if -1 in items else [])
@@ -948,13 +992,18 @@ def _build(workspace, obstacles, min_gap, min_overlap, *, full: bool) -> Forest 
     ws_children = sorted(new[k] for k in crossing if k in new)
 
     # --- rule: the overlap graph must be a forest
-    G = nx.Graph()
-    G.add_nodes_from(range(m))
-    G.add_node(WORKSPACE)
-    G.add_edges_from(edges)
-    G.add_edges_from((WORKSPACE, i) for i in ws_children)
-    cycles = nx.cycle_basis(G)
-    if cycles:
+    adj: dict[int, list[int]] = {v: [] for v in range(m)}
+    adj[WORKSPACE] = []
+    for a, b in edges + [(WORKSPACE, i) for i in ws_children]:
+        adj[a].append(b)
+        adj[b].append(a)
+    comps = _components(adj)
+    if len(edges) + len(ws_children) > m + 1 - len(comps):  # more edges than a forest has: a cycle
+        G = nx.Graph()
+        G.add_nodes_from(adj)
+        G.add_edges_from(edges)
+        G.add_edges_from((WORKSPACE, i) for i in ws_children)
+        cycles = nx.cycle_basis(G)
         cyc = min(cycles, key=lambda c: (len(c), sorted(c)))
         if WORKSPACE in cyc:  # start the cycle at the workspace for a readable message
             r = cyc.index(WORKSPACE)
@@ -1022,12 +1071,11 @@ def _build(workspace, obstacles, min_gap, min_overlap, *, full: bool) -> Forest 
     depth = [0] * m
     tree_of = [0] * m
     roots: list[int] = []
-    comps = sorted((sorted(c) for c in nx.connected_components(G)), key=lambda c: c[0])
     interior = [c for c in comps if WORKSPACE not in c]
 
     def orient(root: int, tree_id: int) -> None:
         """Parents and depths by breadth-first search from ``root`` (the workspace: depth 0)."""
-        for u, v in nx.bfs_edges(G, root, sort_neighbors=sorted):
+        for u, v in _bfs_edges(adj, root):
             parent[v] = u
             depth[v] = (0 if u == WORKSPACE else depth[u]) + 1
             tree_of[v] = tree_id
@@ -1037,7 +1085,7 @@ def _build(workspace, obstacles, min_gap, min_overlap, *, full: bool) -> Forest 
         if len(comp) == 1:
             root = comp[0]
         else:
-            ecc = nx.eccentricity(G.subgraph(comp))
+            ecc = {i: _eccentricity(adj, i) for i in comp}
             for i in comp:
                 if i not in area:  # rounded: equal shapes tie exactly, then the lower index wins
                     area[i] = round(obstacles[keep[i]].area, 9)
