@@ -8,6 +8,8 @@ from collections import OrderedDict
 
 __all__ = ["Memo"]
 
+_MISSING = object()
+
 
 class Memo:
     """Bounded, thread-safe LRU mapping: :meth:`get` returns ``None`` for a missing key and
@@ -31,6 +33,32 @@ class Memo:
             self._data.move_to_end(key)
             self.hits += 1
             return value
+
+    def get_many(self, keys) -> list:
+        """:meth:`get` of every key (one lock for the batch)."""
+        out = []
+        data = self._data
+        with self._lock:
+            for key in keys:
+                value = data.get(key, _MISSING)
+                if value is _MISSING:
+                    self.misses += 1
+                    out.append(None)
+                else:
+                    data.move_to_end(key)
+                    self.hits += 1
+                    out.append(value)
+        return out
+
+    def put_many(self, items) -> None:
+        """:meth:`put` of every ``(key, value)`` pair (one lock for the batch)."""
+        data = self._data
+        with self._lock:
+            for key, value in items:
+                data[key] = value
+                data.move_to_end(key)
+            while len(data) > self.maxsize:
+                data.popitem(last=False)
 
     def put(self, key, value) -> None:
         with self._lock:

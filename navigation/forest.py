@@ -327,13 +327,13 @@ def _sample_rows(P: np.ndarray, n: int):
 
 def _bodies(squircles: Sequence[Squircle], n: int) -> list["_Body"]:
     """Memoised :class:`_Body` of each squircle; the missing ones are sampled in one batch."""
-    out = [_BODIES.get((sq, n)) for sq in squircles]
+    out = _BODIES.get_many([(sq, n) for sq in squircles])
     todo = [k for k, b in enumerate(out) if b is None]
     if todo:
         arrays = _sample_rows(pack([squircles[k] for k in todo]), n)
         for t, k in enumerate(todo):
             out[k] = _Body(squircles[k], n, tuple(a[t] for a in arrays))
-            _BODIES.put((squircles[k], n), out[k])
+        _BODIES.put_many(((squircles[k], n), out[k]) for k in todo)
     return out
 
 
@@ -389,7 +389,7 @@ def _wall_bounds(P: np.ndarray, ws: _Body, squircles: Sequence[Squircle] | None 
     polygon's edges. 0 where a corner is not inside the polygon.
     """
     keys = [("wb", sq, ws.sq) for sq in squircles] if squircles is not None else None
-    v = np.array([_PAIRS.get(k) for k in keys], dtype=float) if keys else np.full(len(P), np.nan)
+    v = np.array(_PAIRS.get_many(keys), dtype=float) if keys else np.full(len(P), np.nan)
     todo = np.nonzero(np.isnan(v))[0]
     if todo.size:
         poly = _PAIRS.get(("wspoly", ws.sq))
@@ -405,8 +405,7 @@ def _wall_bounds(P: np.ndarray, ws: _Body, squircles: Sequence[Squircle] | None 
         slack = b[None, None, :] - c[..., 0, None] * a[:, 0] - c[..., 1, None] * a[:, 1]  # (k, 4, n)
         v[todo] = np.maximum(slack.min(axis=(1, 2)), 0.0)
         if keys:
-            for t in todo:
-                _PAIRS.put(keys[t], float(v[t]))
+            _PAIRS.put_many((keys[t], float(v[t])) for t in todo)
     return v
 
 
@@ -659,7 +658,7 @@ def _workspace_relation(body: _Body, ws: _Body) -> str:
 def _workspace_relations(bodies: Sequence[_Body], ws: _Body) -> list[str]:
     """:func:`_workspace_relation` of every body (memoised; the missing ones in one batch)."""
     keys = [("ws", b.sq, ws.sq) for b in bodies]
-    out = [_PAIRS.get(k) for k in keys]
+    out = _PAIRS.get_many(keys)
     todo = [k for k, r in enumerate(out) if r is None]
     if not todo:
         return out
@@ -684,7 +683,7 @@ def _workspace_relations(bodies: Sequence[_Body], ws: _Body) -> list[str]:
         if not rel[r]:
             rel[r] = "crosses-twice" if arcs[r] > 1 else "crosses"
         out[todo[r]] = rel[r]
-        _PAIRS.put(keys[todo[r]], rel[r])
+    _PAIRS.put_many((keys[todo[r]], rel[r]) for r in range(len(sub)))
     return out
 
 
@@ -699,7 +698,7 @@ def _pair_relations(A: Sequence[_Body], B: Sequence[_Body]) -> list[str | None]:
     batch). The overlap test is exact for convex squircles: a sample of one inside the other,
     else the sign of the (refined) minimum of ``B``'s beta along ``A``'s boundary."""
     keys = [("ov", a.sq, b.sq) for a, b in zip(A, B)]
-    out = [_PAIRS.get(k) for k in keys]
+    out = _PAIRS.get_many(keys)
     todo = [k for k, r in enumerate(out) if r is None]
     if todo:
         sa, sb = [A[k] for k in todo], [B[k] for k in todo]
@@ -720,33 +719,31 @@ def _pair_relations(A: Sequence[_Body], B: Sequence[_Body]) -> list[str | None]:
                 rel[r] = "overlap"
         for r, k in enumerate(todo):
             out[k] = rel[r]
-            _PAIRS.put(keys[k], rel[r])
+        _PAIRS.put_many((keys[k], rel[r]) for r, k in enumerate(todo))
     return [r or None for r in out]
 
 
 def _distances(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray) -> np.ndarray:
     """:func:`_pair_distance` of rows ``(I[k], J[k])``, computing only the rows not memoised."""
     keys = [("d", bodies[i].sq, bodies[j].sq) for i, j in zip(I, J)]
-    out = np.array([_PAIRS.get(k) for k in keys], dtype=float)  # None -> nan
+    out = np.array(_PAIRS.get_many(keys), dtype=float)  # None -> nan
     todo = np.nonzero(np.isnan(out))[0]
     if todo.size:
         d, _, _ = _pair_distance(bodies, I[todo], J[todo])
         out[todo] = d
-        for t, v in zip(todo, d):
-            _PAIRS.put(keys[t], float(v))
+        _PAIRS.put_many((keys[t], float(v)) for t, v in zip(todo, d))
     return out
 
 
 def _centers(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, outside: np.ndarray):
     """:func:`_common_centers` of rows ``(I[k], J[k])``, computing only the rows not memoised."""
     keys = [("c", bodies[i].sq, bodies[j].sq, bool(o)) for i, j, o in zip(I, J, outside)]
-    found = [_PAIRS.get(k) for k in keys]
+    found = _PAIRS.get_many(keys)
     todo = np.array([t for t, v in enumerate(found) if v is None], dtype=np.intp)
     c, d = np.empty((len(I), 2)), np.empty(len(I))
     if todo.size:
         c[todo], d[todo] = _common_centers(bodies, I[todo], J[todo], outside[todo])
-        for t in todo:
-            _PAIRS.put(keys[t], (c[t].copy(), float(d[t])))
+        _PAIRS.put_many((keys[t], (c[t].copy(), float(d[t]))) for t in todo)
     for t, v in enumerate(found):
         if v is not None:
             c[t], d[t] = v
@@ -763,13 +760,12 @@ def _far_gaps(bodies: Sequence[_Body], I: Sequence[int], W: int, centres: np.nda
     """
     ws = bodies[W]
     keys = [("far", bodies[i].sq, ws.sq) for i in I]
-    out = np.array([_PAIRS.get(k) for k in keys], dtype=float)  # None -> nan
+    out = np.array(_PAIRS.get_many(keys), dtype=float)  # None -> nan
     todo = np.nonzero(np.isnan(out))[0]
     if todo.size:
         g = far_gap_rows(np.stack([bodies[I[t]].row for t in todo]), np.asarray(centres, float)[todo], ws.row, n)
-        for t, v in zip(todo, g):
-            out[t] = v
-            _PAIRS.put(keys[t], float(v))
+        out[todo] = g
+        _PAIRS.put_many((keys[t], float(v)) for t, v in zip(todo, g))
     return out
 
 

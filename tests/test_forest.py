@@ -684,6 +684,23 @@ class TestMemo:
         m.put(5, 50)  # evicts 3, the least recently used
         assert m.get(3) is None and m.get(2) == 20 and m.get(5) == 50
 
+    def test_batched_lookups_behave_like_single_ones(self):
+        """get_many / put_many: the same values, hit and miss counts and eviction order as the
+        same get / put calls one by one."""
+        from navigation._memo import Memo
+
+        a, b = Memo(4), Memo(4)
+        items = [(k, k * 10) for k in range(6)]
+        a.put_many(items)
+        for k, v in items:
+            b.put(k, v)
+        keys = [0, 3, 5, 9, 2, 3]
+        assert a.get_many(keys) == [b.get(k) for k in keys] == [None, 30, 50, None, 20, 30]
+        assert (a.hits, a.misses) == (b.hits, b.misses) == (4, 2)
+        a.put_many([(7, 70)])
+        b.put(7, 70)
+        assert a.get_many(range(10)) == [b.get(k) for k in range(10)]
+
 
 def test_check_forest_refuses_exactly_what_build_forest_refuses():
     """``check_forest`` stops before the far gaps and clearances: on random obstacle sets (many
