@@ -14,7 +14,10 @@ small arrays (the forest construction calls these on a few dozen rows at a time)
 * :func:`far_gap_rows`: :func:`navigation.forest._far_gaps` (the room beyond a workspace child
   along the rays from its common centre);
 * :func:`gap_bound_rows`: :func:`navigation.forest._gap_bound_rows` (lower bounds of the
-  distance between two squircles from their bounding rectangles and discs).
+  distance between two squircles from their bounding rectangles and discs);
+* :func:`wall_bound_rows`: :func:`navigation.forest._wall_bounds` (lower bounds of the distance
+  from a squircle to the workspace boundary from its bounding rectangle and an inscribed
+  polygon).
 
 Packed rows are ``(cx, cy, cos theta, sin theta, half width, half height, s)``
 (:func:`navigation.geometry.pack`). Every row is computed independently of the others in its
@@ -29,7 +32,7 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["point_xy", "point_xy_cs", "beta_rows", "signed_distance_rows", "ray_length_rows", "far_gap_rows", "gap_bound_rows"]
+__all__ = ["point_xy", "point_xy_cs", "beta_rows", "signed_distance_rows", "ray_length_rows", "far_gap_rows", "gap_bound_rows", "wall_bound_rows"]
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -328,6 +331,31 @@ def _gap_bound_kernel(A, B):
         disc = math.hypot(dx, dy) - math.hypot(A[k, 4], A[k, 5]) - math.hypot(B[k, 4], B[k, 5])
         out[k] = max(max(rect, disc), 0.0)
     return out
+
+
+@numba.njit(**_JIT)
+def _wall_bound_kernel(P, a, b):
+    K, n = P.shape[0], b.shape[0]
+    out = np.empty(K)
+    for k in range(K):
+        best = math.inf
+        for u in range(4):
+            px, py = _corner(P, k, u)
+            for e in range(n):
+                best = min(best, b[e] - px * a[e, 0] - py * a[e, 1])
+        out[k] = max(best, 0.0)
+    return out
+
+
+def wall_bound_rows(P: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Per row of ``P (K, 7)``: the smallest slack ``b_e - a_e . c`` of the corners ``c`` of its
+    bounding rectangle over the half-planes ``a (n, 2)``, ``b (n,)`` of a convex polygon (0 where
+    a corner is outside): a lower bound of the distance from the squircle to the polygon's
+    boundary (:func:`navigation.forest._wall_bounds`)."""
+    P = np.ascontiguousarray(P, dtype=float).reshape(-1, 7)
+    if len(P) == 0:
+        return np.empty(0)
+    return _wall_bound_kernel(P, np.ascontiguousarray(a, dtype=float), np.ascontiguousarray(b, dtype=float))
 
 
 def gap_bound_rows(A: np.ndarray, B: np.ndarray) -> np.ndarray:

@@ -81,14 +81,13 @@ import networkx as nx
 import numpy as np
 
 from ._center_kernel import center_programs
-from ._geom_kernel import beta_rows, far_gap_rows, gap_bound_rows
+from ._geom_kernel import beta_rows, far_gap_rows, gap_bound_rows, wall_bound_rows
 from ._lp_kernel import max_min_slack
 from ._memo import Memo
 from ._pair_kernel import pair_distance
 from ._sample_kernel import extreme_betas_arrays, sample_rows
 from .errors import ForestError
-from .geometry import (COS, CX, CY, HH, HW, SIN, Squircle, boundary_jet_rows,
-                       clear_geometry_cache, pack, point_at_rows,
+from .geometry import (Squircle, boundary_jet_rows, clear_geometry_cache, pack, point_at_rows,
                        signed_distance_rows)
 
 __all__ = ["WORKSPACE", "NO_PARENT", "Forest", "build_forest", "check_forest", "separation", "common_center",
@@ -344,15 +343,6 @@ def _signed_distance(bodies: Sequence[_Body], bid: np.ndarray, q: np.ndarray) ->
     return signed_distance_rows(np.stack([bodies[b].row for b in bid]) if len(bid) else np.zeros((0, 7)), q)
 
 
-def _corners(P: np.ndarray) -> np.ndarray:
-    """Corners ``(K, 4, 2)`` (counter-clockwise) of the bounding rectangles of rows ``P (K, 7)``."""
-    sx = np.array([1.0, -1.0, -1.0, 1.0])
-    sy = np.array([1.0, 1.0, -1.0, -1.0])
-    lx, ly = sx[None] * P[:, HW, None], sy[None] * P[:, HH, None]
-    return np.stack((P[:, CX, None] + P[:, COS, None] * lx - P[:, SIN, None] * ly,
-                     P[:, CY, None] + P[:, SIN, None] * lx + P[:, COS, None] * ly), axis=-1)
-
-
 def _gap_bound_rows(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     """Lower bounds ``(E,)`` of the distances between the squircles of rows ``A[k]`` and ``B[k]``.
 
@@ -400,10 +390,7 @@ def _wall_bounds(P: np.ndarray, ws: _Body, squircles: Sequence[Squircle] | None 
             a /= np.linalg.norm(a, axis=1, keepdims=True)
             poly = (a, (a * pts).sum(-1))
             _PAIRS.put(("wspoly", ws.sq), poly)
-        a, b = poly
-        c = _corners(P[todo])  # (k, 4, 2)
-        slack = b[None, None, :] - c[..., 0, None] * a[:, 0] - c[..., 1, None] * a[:, 1]  # (k, 4, n)
-        v[todo] = np.maximum(slack.min(axis=(1, 2)), 0.0)
+        v[todo] = wall_bound_rows(P[todo], *poly)
         if keys:
             _PAIRS.put_many((keys[t], float(v[t])) for t in todo)
     return v
