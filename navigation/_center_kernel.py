@@ -29,7 +29,7 @@ import math
 import numba
 import numpy as np
 
-from ._geom_kernel import _beta, point_xy_cs
+from ._geom_kernel import _arr, _beta, point_xy_cs
 from ._pair_kernel import _jet
 
 __all__ = ["center_programs", "polygon_constraints"]
@@ -65,7 +65,7 @@ def _polygon(P, k, cs, sn, v, a, b):
 def polygon_constraints(P: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Half-planes ``a . q <= b`` of the polygons inscribed in the squircles ``P (K, 7)``:
     ``(a (K, n, 2), b (K, n), vertices (K, n, 2))`` (see the module docstring)."""
-    P = np.ascontiguousarray(P, dtype=float).reshape(-1, 7)
+    P = _arr(P).reshape(-1, 7)
     cs, sn = _angles(int(n))
     v, a, b = np.empty((len(P), n, 2)), np.empty((len(P), n, 2)), np.empty((len(P), n))
     for k in range(len(P)):
@@ -231,12 +231,11 @@ def center_programs(PI: np.ndarray, PJ: np.ndarray, outside: np.ndarray, ws_row:
     angles ``ws_psi``): ``(A (R, W, 2), B (R, W), LO (R, 2), HI (R, 2), L (R,), owner (R,))``,
     half-planes ``A[r] . q <= B[r]`` of program ``r`` for pair ``owner[r]``, its start box and
     scale (the inputs of :func:`navigation._lp_kernel.max_min_slack`)."""
-    PI = np.ascontiguousarray(PI, dtype=float).reshape(-1, 7)
-    PJ = np.ascontiguousarray(PJ, dtype=float).reshape(-1, 7)
-    outside = np.ascontiguousarray(outside, dtype=np.bool_)
+    PI = _arr(PI).reshape(-1, 7)
+    PJ = _arr(PJ).reshape(-1, 7)
+    outside = _arr(outside, np.bool_)
     if ws_row is None:
         ws_row, ws_pts, ws_psi = np.zeros(7), np.zeros((0, 2)), np.zeros(0)
     cs, sn = _angles(int(n))
-    return _programs(PI, PJ, outside, np.ascontiguousarray(ws_row, dtype=float),
-                     np.ascontiguousarray(ws_pts, dtype=float), np.ascontiguousarray(ws_psi, dtype=float),
-                     cs, sn, int(n_tangents), math.cos(turn))
+    return _programs(PI, PJ, outside, _arr(ws_row), _arr(ws_pts), _arr(ws_psi), cs, sn, int(n_tangents),
+                     math.cos(turn))

@@ -37,6 +37,13 @@ __all__ = ["point_xy", "point_xy_cs", "beta_rows", "signed_distance_rows", "ray_
 _JIT = dict(cache=True, nogil=True)
 
 
+def _arr(x, dtype=float) -> np.ndarray:
+    """``x`` as a C-contiguous, writeable array of ``dtype`` (numba compiles read-only arrays as
+    another type: one signature per kernel instead of two)."""
+    x = np.ascontiguousarray(x, dtype=dtype)
+    return x if x.flags.writeable else x.copy()
+
+
 @numba.njit(inline="always", **_JIT)
 def point_xy(P, k, psi):
     """Boundary point ``(x, y)`` of row ``P[k]`` at the boundary angle ``psi``."""
@@ -84,9 +91,9 @@ def beta_rows(P: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Obstacle function of packed rows ``P (K, 7)`` (or one row, ``(1, 7)``, for all) at the
     points ``q (K, ..., 2)``: ``(K, ...)``, the formula of :func:`navigation.forest._beta`."""
     q = np.asarray(q, dtype=float)
-    P = np.ascontiguousarray(P, dtype=float).reshape(-1, 7)
+    P = _arr(P, dtype=float).reshape(-1, 7)
     K = q.shape[0]
-    out = _beta_kernel(P, np.ascontiguousarray(q).reshape(K, -1, 2))
+    out = _beta_kernel(P, _arr(q).reshape(K, -1, 2))
     return out.reshape(q.shape[:-1])
 
 
@@ -151,8 +158,8 @@ def _signed_distance_kernel(P, q, n, stages, m):
 def signed_distance_rows(P: np.ndarray, q: np.ndarray, n: int = 128, stages: int = 11, m: int = 16) -> np.ndarray:
     """Signed distances (negative inside) of the points ``q (K, 2)`` to the squircles of the rows
     ``P (K, 7)``: :func:`navigation.geometry.signed_distance_rows`, compiled."""
-    q = np.ascontiguousarray(q, dtype=float).reshape(-1, 2)
-    P = np.ascontiguousarray(P, dtype=float).reshape(-1, 7)
+    q = _arr(q, dtype=float).reshape(-1, 2)
+    P = _arr(P, dtype=float).reshape(-1, 7)
     if len(q) == 0:
         return np.empty(0)
     return _signed_distance_kernel(P, q, int(n), int(stages), int(m))
@@ -260,12 +267,12 @@ def far_gap_rows(P: np.ndarray, centres: np.ndarray, ws_row: np.ndarray, n: int)
     ``centres (K, 2)`` in evenly spaced directions, those whose exit from the child lies inside
     the workspace: the smallest difference between the workspace's exit distance and the
     child's (exact ray lengths); ``inf`` where no ray reaches into the workspace."""
-    P = np.ascontiguousarray(P, dtype=float).reshape(-1, 7)
+    P = _arr(P, dtype=float).reshape(-1, 7)
     if len(P) == 0:
         return np.empty(0)
     a = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
-    return _far_gap_kernel(P, np.ascontiguousarray(centres, dtype=float).reshape(-1, 2),
-                           np.ascontiguousarray(ws_row, dtype=float).reshape(1, 7), np.cos(a), np.sin(a))
+    return _far_gap_kernel(P, _arr(centres, dtype=float).reshape(-1, 2),
+                           _arr(ws_row, dtype=float).reshape(1, 7), np.cos(a), np.sin(a))
 
 
 def ray_length_rows(p: np.ndarray, o: np.ndarray, d: np.ndarray, entry: np.ndarray | None = None) -> np.ndarray:
@@ -273,12 +280,12 @@ def ray_length_rows(p: np.ndarray, o: np.ndarray, d: np.ndarray, entry: np.ndarr
     boundary of rows ``p (K, 7)`` (exit, or entry where ``entry``):
     :func:`navigation.geometry.ray_length_packed`, compiled, each row iterated to its own
     convergence."""
-    p = np.ascontiguousarray(p, dtype=float).reshape(-1, 7)
+    p = _arr(p, dtype=float).reshape(-1, 7)
     if len(p) == 0:
         return np.empty(0)
-    o = np.ascontiguousarray(np.broadcast_to(o, (len(p), 2)), dtype=float)
-    d = np.ascontiguousarray(np.broadcast_to(d, (len(p), 2)), dtype=float)
-    e = np.zeros(len(p), dtype=np.bool_) if entry is None else np.ascontiguousarray(entry, dtype=np.bool_)
+    o = _arr(np.broadcast_to(o, (len(p), 2)), dtype=float)
+    d = _arr(np.broadcast_to(d, (len(p), 2)), dtype=float)
+    e = np.zeros(len(p), dtype=np.bool_) if entry is None else _arr(entry, dtype=np.bool_)
     return _ray_length_kernel(p, o, d, e)
 
 
@@ -352,17 +359,17 @@ def wall_bound_rows(P: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     bounding rectangle over the half-planes ``a (n, 2)``, ``b (n,)`` of a convex polygon (0 where
     a corner is outside): a lower bound of the distance from the squircle to the polygon's
     boundary (:func:`navigation.forest._wall_bounds`)."""
-    P = np.ascontiguousarray(P, dtype=float).reshape(-1, 7)
+    P = _arr(P, dtype=float).reshape(-1, 7)
     if len(P) == 0:
         return np.empty(0)
-    return _wall_bound_kernel(P, np.ascontiguousarray(a, dtype=float), np.ascontiguousarray(b, dtype=float))
+    return _wall_bound_kernel(P, _arr(a, dtype=float), _arr(b, dtype=float))
 
 
 def gap_bound_rows(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     """Lower bounds ``(E,)`` of the distances between the squircles of rows ``A[k]`` and
     ``B[k]``: :func:`navigation.forest._gap_bound_rows`, compiled."""
-    A = np.ascontiguousarray(A, dtype=float).reshape(-1, 7)
-    B = np.ascontiguousarray(B, dtype=float).reshape(-1, 7)
+    A = _arr(A, dtype=float).reshape(-1, 7)
+    B = _arr(B, dtype=float).reshape(-1, 7)
     if len(A) == 0:
         return np.empty(0)
     return _gap_bound_kernel(A, B)

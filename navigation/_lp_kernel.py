@@ -33,6 +33,8 @@ import math
 import numba
 import numpy as np
 
+from ._geom_kernel import _arr
+
 __all__ = ["max_min_slack"]
 
 _PAD = 1e100  #: a half-plane with ``a = 0`` and ``b`` at least this is padding (weight 0)
@@ -159,11 +161,11 @@ def max_min_slack(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarray, 
     ``scale (E,)``. Same algorithm and results as :func:`navigation.forest._max_min_slack`
     (see the module docstring). Returns the points ``(E, 2)`` and their exact ``t (E,)``.
     """
-    a = np.ascontiguousarray(a, dtype=float)
-    b = np.ascontiguousarray(b, dtype=float)
-    lo = np.ascontiguousarray(lo, dtype=float)
-    hi = np.ascontiguousarray(hi, dtype=float)
-    scale = np.ascontiguousarray(scale, dtype=float)
+    a = _arr(a)
+    b = _arr(b)
+    lo = _arr(lo)
+    hi = _arr(hi)
+    scale = _arr(scale)
     E = len(a)
     if E == 0:
         return np.empty((0, 2)), np.empty(0)

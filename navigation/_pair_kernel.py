@@ -33,6 +33,8 @@ import math
 import numba
 import numpy as np
 
+from ._geom_kernel import _arr
+
 __all__ = ["newton_pair", "pair_distance_arrays", "pair_distance"]
 
 _STRIDE = 8  # coarse sampling stride of _pair_distance
@@ -209,11 +211,11 @@ def newton_pair(PI: np.ndarray, PJ: np.ndarray, c0: np.ndarray, w0: np.ndarray, 
     """Compiled :func:`navigation.forest._newton_pair`: minimise ``|a(s) - b(t)|^2`` over the
     boundary parameters of rows ``PI``, ``PJ (K, 7)`` from ``c0 (K, 2)`` (value ``f0 (K,)``) within
     windows ``w0 (K, 2)``; returns ``(c (K, 2), f (K,))``."""
-    PI = np.ascontiguousarray(PI, float).reshape(-1, 7)
-    PJ = np.ascontiguousarray(PJ, float).reshape(-1, 7)
-    c0 = np.ascontiguousarray(c0, float).reshape(-1, 2)
-    w0 = np.ascontiguousarray(w0, float).reshape(-1, 2)
-    f0 = np.ascontiguousarray(f0, float).reshape(-1)
+    PI = _arr(PI).reshape(-1, 7)
+    PJ = _arr(PJ).reshape(-1, 7)
+    c0 = _arr(c0).reshape(-1, 2)
+    w0 = _arr(w0).reshape(-1, 2)
+    f0 = _arr(f0).reshape(-1)
     K = len(c0)
     c, f = np.empty((K, 2)), np.empty(K)
     if K:
@@ -304,16 +306,16 @@ def pair_distance_arrays(PI: np.ndarray, PJ: np.ndarray, A: np.ndarray, B: np.nd
     All rows share ``na`` and ``nb``: call once per group of sample counts (ragged input:
     :func:`pair_distance`). Returns ``(distances (K,), points_on_I (K, 2), points_on_J (K, 2))``.
     """
-    PI = np.ascontiguousarray(PI, float).reshape(-1, 7)
-    PJ = np.ascontiguousarray(PJ, float).reshape(-1, 7)
+    PI = _arr(PI).reshape(-1, 7)
+    PJ = _arr(PJ).reshape(-1, 7)
     K = len(PI)
     if K == 0:
         return np.empty(0), np.empty((0, 2)), np.empty((0, 2))
-    A = np.ascontiguousarray(A, float).reshape(K, -1, 2)
-    B = np.ascontiguousarray(B, float).reshape(K, -1, 2)
-    psi_a = np.ascontiguousarray(psi_a, float).reshape(K, -1)
-    psi_b = np.ascontiguousarray(psi_b, float).reshape(K, -1)
-    w_a, w_b, spacing_a, spacing_b = (np.ascontiguousarray(x, float).reshape(K)
+    A = _arr(A).reshape(K, -1, 2)
+    B = _arr(B).reshape(K, -1, 2)
+    psi_a = _arr(psi_a).reshape(K, -1)
+    psi_b = _arr(psi_b).reshape(K, -1)
+    w_a, w_b, spacing_a, spacing_b = (_arr(x).reshape(K)
                                       for x in (w_a, w_b, spacing_a, spacing_b))
     d, qa, qb = np.empty(K), np.empty((K, 2)), np.empty((K, 2))
     _pair_kernel(PI, PJ, A, B, psi_a, psi_b, w_a, w_b, spacing_a, spacing_b, float(tol), _MAX_ITER, d, qa, qb)

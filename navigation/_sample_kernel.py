@@ -37,6 +37,8 @@ import math
 import numba
 import numpy as np
 
+from ._geom_kernel import _arr
+
 from .geometry import COS, CX, CY, HH, HW, S, SIN
 
 __all__ = ["sample_rows", "extreme_betas_arrays"]
@@ -212,7 +214,7 @@ def sample_rows(P: np.ndarray, n: int):
     """:func:`navigation.forest._sample_rows` (numba kernel): ``n`` boundary angles per row of
     ``P (K, 7)``, evenly spaced in arc length, and ``(P, psi (K, n), pts (K, n, 2), w0 (K,),
     spacing (K,))``."""
-    P = np.ascontiguousarray(P, float)
+    P = _arr(P)
     n = int(n)
     K = len(P)
     psi, pts = np.empty((K, n)), np.empty((K, n, 2))
@@ -304,15 +306,13 @@ def extreme_betas_arrays(others: np.ndarray, sign: np.ndarray, vals: np.ndarray,
     ``k`` the ``min`` (``sign[k] = +1``) or ``max`` (``-1``) of the beta of ``others[k] (7,)``
     along the boundary of the body ``body_rows[k]`` sampled at ``psi[k] (n,)``, ``pts[k] (n, 2)``
     (``spacing[k]``, ``w0[k]``), given the values ``vals[k] (n,)`` there. Returns ``(K,)``."""
-    vals = np.ascontiguousarray(vals, float)
+    vals = _arr(vals)
     K = len(vals)
     out = np.empty(K)
     if K == 0:
         return out
     if vals.ndim != 2 or vals.shape[1] == 0:
         raise ValueError("extreme_betas_arrays needs vals of shape (K, n) with n >= 1")
-    _extreme_kernel(np.ascontiguousarray(others, float), np.ascontiguousarray(sign, float), vals,
-                    np.ascontiguousarray(body_rows, float), np.ascontiguousarray(psi, float),
-                    np.ascontiguousarray(pts, float), np.ascontiguousarray(spacing, float),
-                    np.ascontiguousarray(w0, float), _OFFS, _SHRINK, _TOL, _MAX_ROUNDS, out)
+    _extreme_kernel(_arr(others), _arr(sign), vals, _arr(body_rows), _arr(psi), _arr(pts), _arr(spacing),
+                    _arr(w0), _OFFS, _SHRINK, _TOL, _MAX_ROUNDS, out)
     return out

@@ -121,6 +121,12 @@ def _setup(a):
     if a.world is None:
         raise ServiceError("--world is required for run (a world file or built-in name)")
     world = navigation.load_world(a.world)
+    from navigation.kernels import warm_up
+
+    seconds = warm_up()  # compile now (first run on a machine), not at the robot's first map change
+    if seconds > 1.0:
+        print(f"tamp-service: compiled the navigation kernels in {seconds:.1f} s (first run on this machine; "
+              "cached from now on)", file=sys.stderr, flush=True)
     try:
         brain = ExecutiveBrain(world, a.task, known=a.known)
     except Exception as err:

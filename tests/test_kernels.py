@@ -1,0 +1,43 @@
+"""navigation.kernels.warm_up compiles every kernel the construction, the navigation function
+and the simulator's lidar use: afterwards, building and evaluating forests of random and shared
+worlds and scanning with the lidar compile nothing new (checked in a fresh process)."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+
+SCRIPT = r"""
+import json
+import numpy as np
+import navigation
+import navigation.forest as F
+from navigation.kernels import compiled_signatures, warm_up
+from service.sim import Simulator
+from tests.worldgen import random_forest_world
+
+warm_up()
+before = compiled_signatures()
+worlds = [random_forest_world(seed, n_obstacles=n, max_depth=4) for seed, n in ((0, 8), (1, 15), (2, 25))]
+worlds += [navigation.load_world(name) for name in ("office", "cluttered20")]
+for w in worlds:
+    F.clear_cache()
+    forest = w.forest(0.0)
+    forest.distances, forest.wall_distance
+    goal = list(w.regions.values())[0].center
+    nf = navigation.NavigationFunction(forest, goal)
+    nf.evaluate(np.asarray(goal)[None] + 0.05, 2)
+    nf.evaluate(np.asarray(goal) + 0.05, 2)
+sim = Simulator(navigation.load_world("office"), seed=0)
+sim.scan()
+after = compiled_signatures()
+print(json.dumps({k: [before.get(k), v] for k, v in after.items() if before.get(k) != v}))
+"""
+
+
+def test_warm_up_compiles_everything_used():
+    out = subprocess.run([sys.executable, "-c", SCRIPT], cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert json.loads(out.stdout.strip().splitlines()[-1]) == {}
