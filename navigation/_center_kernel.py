@@ -29,8 +29,7 @@ import math
 import numba
 import numpy as np
 
-from ._geom_kernel import _arr, _beta, point_xy_cs
-from ._pair_kernel import _jet
+from ._geom_kernel import _arr, _beta, _jet, point_xy_cs
 
 __all__ = ["center_programs", "polygon_constraints"]
 

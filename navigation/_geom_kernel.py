@@ -32,7 +32,7 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["point_xy", "point_xy_cs", "beta_rows", "signed_distance_rows", "ray_length_rows", "far_gap_rows", "gap_bound_rows", "wall_bound_rows"]
+__all__ = ["point_xy", "point_xy_cs", "beta_rows", "boundary_jet", "signed_distance_rows", "ray_length_rows", "far_gap_rows", "gap_bound_rows", "wall_bound_rows"]
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -73,6 +73,71 @@ def _beta(P, k, qx, qy):
     x2, y2 = x * x, y * y
     s = P[k, 6]
     return 0.5 * (x2 + y2 + math.sqrt(x2 * x2 + y2 * y2 + (2.0 - 4.0 * s * s) * x2 * y2)) - 1.0
+
+
+@numba.njit(inline="always", **_JIT)
+def _jet(p, psi):
+    """Boundary point of row ``p (7,)`` at ``psi`` and its first and second ``psi`` derivatives,
+    as six floats ``x, y, x', y', x'', y''`` (:func:`navigation.geometry.boundary_jet_rows`)."""
+    cs = math.cos(psi)
+    sn = math.sin(psi)
+    m = cs * sn
+    m1 = cs * cs - sn * sn
+    m2 = -4.0 * cs * sn
+    k = 4.0 * p[6] * p[6]
+    h = 1.0 - k * m * m
+    if not h >= 1e-300:  # np.maximum(h, 1e-300)
+        h = h if h != h else 1e-300
+    h1 = -2.0 * k * m * m1
+    h2 = -2.0 * k * (m1 * m1 + m * m2)
+    g = math.sqrt(h)
+    g1 = h1 / (2.0 * g)
+    g2 = (h2 - 2.0 * g1 * g1) / (2.0 * g)
+    u = 1.0 + g
+    r = math.sqrt(2.0 / u)
+    r1 = -0.5 * r * g1 / u
+    r2 = 0.75 * r * g1 * g1 / (u * u) - 0.5 * r * g2 / u
+    lx0 = r * cs
+    lx1 = r1 * cs - r * sn
+    lx2 = r2 * cs - 2.0 * r1 * sn - r * cs
+    ly0 = r * sn
+    ly1 = r1 * sn + r * cs
+    ly2 = r2 * sn + 2.0 * r1 * cs - r * sn
+    c = p[2]
+    s_ = p[3]
+    hw = p[4]
+    hh = p[5]
+    x = hw * lx0
+    y = hh * ly0
+    px = c * x - s_ * y + p[0]
+    py = s_ * x + c * y + p[1]
+    x = hw * lx1
+    y = hh * ly1
+    px1 = c * x - s_ * y
+    py1 = s_ * x + c * y
+    x = hw * lx2
+    y = hh * ly2
+    px2 = c * x - s_ * y
+    py2 = s_ * x + c * y
+    return px, py, px1, py1, px2, py2
+
+
+@numba.njit(**_JIT)
+def _jet_kernel(P, psi, out):
+    for k in range(psi.shape[0]):
+        out[0, k], out[1, k], out[2, k], out[3, k], out[4, k], out[5, k] = _jet(P[k], psi[k])
+
+
+def boundary_jet(P: np.ndarray, psi: np.ndarray) -> np.ndarray:
+    """Boundary points of rows ``P (K, 7)`` at angles ``psi (K,)`` and their first and second
+    ``psi`` derivatives: ``(6, K)`` rows ``x, y, x', y', x'', y''``
+    (:func:`navigation.geometry.boundary_jet_rows`)."""
+    P = _arr(P).reshape(-1, 7)
+    psi = _arr(psi).reshape(-1)
+    out = np.empty((6, len(psi)))
+    if len(psi):
+        _jet_kernel(P, psi, out)
+    return out
 
 
 @numba.njit(**_JIT)

@@ -33,7 +33,7 @@ import math
 import numba
 import numpy as np
 
-from ._geom_kernel import _arr
+from ._geom_kernel import _arr, _jet
 
 __all__ = ["newton_pair", "pair_distance_arrays", "pair_distance"]
 
@@ -61,53 +61,6 @@ def _point(p, psi):
     c = p[2]
     sn = p[3]
     return p[0] + c * lx - sn * ly, p[1] + sn * lx + c * ly
-
-
-@numba.njit(cache=True, inline="always")
-def _jet(p, psi):
-    """Boundary point of row ``p (7,)`` at ``psi`` and its first and second ``psi`` derivatives,
-    as six floats ``x, y, x', y', x'', y''`` (:func:`navigation.geometry.boundary_jet_rows`)."""
-    cs = math.cos(psi)
-    sn = math.sin(psi)
-    m = cs * sn
-    m1 = cs * cs - sn * sn
-    m2 = -4.0 * cs * sn
-    k = 4.0 * p[6] * p[6]
-    h = 1.0 - k * m * m
-    if not h >= 1e-300:  # np.maximum(h, 1e-300)
-        h = h if h != h else 1e-300
-    h1 = -2.0 * k * m * m1
-    h2 = -2.0 * k * (m1 * m1 + m * m2)
-    g = math.sqrt(h)
-    g1 = h1 / (2.0 * g)
-    g2 = (h2 - 2.0 * g1 * g1) / (2.0 * g)
-    u = 1.0 + g
-    r = math.sqrt(2.0 / u)
-    r1 = -0.5 * r * g1 / u
-    r2 = 0.75 * r * g1 * g1 / (u * u) - 0.5 * r * g2 / u
-    lx0 = r * cs
-    lx1 = r1 * cs - r * sn
-    lx2 = r2 * cs - 2.0 * r1 * sn - r * cs
-    ly0 = r * sn
-    ly1 = r1 * sn + r * cs
-    ly2 = r2 * sn + 2.0 * r1 * cs - r * sn
-    c = p[2]
-    s_ = p[3]
-    hw = p[4]
-    hh = p[5]
-    x = hw * lx0
-    y = hh * ly0
-    px = c * x - s_ * y + p[0]
-    py = s_ * x + c * y + p[1]
-    x = hw * lx1
-    y = hh * ly1
-    px1 = c * x - s_ * y
-    py1 = s_ * x + c * y
-    x = hw * lx2
-    y = hh * ly2
-    px2 = c * x - s_ * y
-    py2 = s_ * x + c * y
-    return px, py, px1, py1, px2, py2
 
 
 @numba.njit(cache=True, inline="always")

@@ -399,34 +399,12 @@ def boundary_jet_rows(P: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.nd
     Same parametrisation as :meth:`Squircle.point_at`: with ``m = cos psi sin psi``,
     ``g = sqrt(1 - 4 s^2 m^2)`` and ``rho = sqrt(2 / (1 + g))`` the point is
     ``c + R(theta) (hw rho cos psi, hh rho sin psi)``. ``g >= sqrt(1 - s^2) > 0`` for ``s < 1``.
+    Compiled: :func:`navigation._geom_kernel.boundary_jet`.
     """
-    C = P.T.reshape((7, -1) + (1,) * (psi.ndim - 1))
-    cs, sn = np.cos(psi), np.sin(psi)
-    m, m1, m2 = cs * sn, cs * cs - sn * sn, -4.0 * cs * sn
-    k = 4.0 * C[S] * C[S]
-    h = np.maximum(1.0 - k * m * m, 1e-300)
-    h1 = -2.0 * k * m * m1
-    h2 = -2.0 * k * (m1 * m1 + m * m2)
-    g = np.sqrt(h)
-    g1 = h1 / (2.0 * g)
-    g2 = (h2 - 2.0 * g1 * g1) / (2.0 * g)
-    u = 1.0 + g
-    r = np.sqrt(2.0 / u)
-    r1 = -0.5 * r * g1 / u
-    r2 = 0.75 * r * g1 * g1 / (u * u) - 0.5 * r * g2 / u
-    # (lx, ly) = (hw r cos, hh r sin) and derivatives (product rule; cos' = -sin, sin' = cos)
-    lx = (r * cs, r1 * cs - r * sn, r2 * cs - 2.0 * r1 * sn - r * cs)
-    ly = (r * sn, r1 * sn + r * cs, r2 * sn + 2.0 * r1 * cs - r * sn)
-    c, s_ = C[COS], C[SIN]
-    out = []
-    for order in range(3):
-        x = C[HW] * lx[order]
-        y = C[HH] * ly[order]
-        px, py = c * x - s_ * y, s_ * x + c * y
-        if order == 0:
-            px, py = px + C[CX], py + C[CY]
-        out.append(np.stack((px, py), axis=-1))
-    return out[0], out[1], out[2]
+    psi = np.asarray(psi, dtype=float)
+    rows = np.repeat(np.asarray(P, dtype=float).reshape(-1, 7), psi[0].size if psi.ndim > 1 else 1, axis=0)
+    j = _geom_kernel.boundary_jet(rows, psi.reshape(-1))  # compiled, one row at a time
+    return tuple(np.stack((j[2 * o], j[2 * o + 1]), axis=-1).reshape(psi.shape + (2,)) for o in range(3))
 
 
 class ExactDistance:
