@@ -123,10 +123,15 @@ def _setup(a):
     world = navigation.load_world(a.world)
     from navigation.kernels import warm_up
 
-    seconds = warm_up()  # compile now (first run on a machine), not at the robot's first map change
+    # compile now (first run on a machine), not at the robot's first map change; say so if it takes
+    notice = threading.Timer(1.0, lambda: print("tamp-service: compiling the navigation kernels (first run on "
+                                                "this machine only, 10-30 s) ...", file=sys.stderr, flush=True))
+    notice.start()
+    seconds = warm_up()
+    notice.cancel()
     if seconds > 1.0:
-        print(f"tamp-service: compiled the navigation kernels in {seconds:.1f} s (first run on this machine; "
-              "cached from now on)", file=sys.stderr, flush=True)
+        print(f"tamp-service: navigation kernels ready in {seconds:.1f} s (cached from now on)", file=sys.stderr,
+              flush=True)
     try:
         brain = ExecutiveBrain(world, a.task, known=a.known)
     except Exception as err:
