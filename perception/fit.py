@@ -17,9 +17,9 @@ free-space evidence inside the estimate and a penalty ``0.1 sqrt(N) max(a - a0, 
 ``b``) on extents beyond the starting rectangle's (the unseen side of a partial view is not
 constrained by data), each radial error weighted by ``g / (|q - c| |grad g|)`` (so that it is
 the distance to the boundary to first order, :func:`_distance_weights`), by Levenberg-Marquardt
-(:func:`_lm`) over ``(c, log a, log b, theta, s)``, started from OpenCV's ``minAreaRect``
-(``s = 0.9``) and
-``fitEllipse`` (``s = 0.1``) of the points; of the two results the one with the smaller total
+(:func:`_lm`, a numba kernel: :mod:`perception._fit_kernel`) over ``(c, log a, log b, theta,
+s)``, started from OpenCV's ``minAreaRect`` (``s = 0.9``) and ``fitEllipse`` (``s = 0.1``) of
+the points; of the two results the one with the smaller total
 cost is kept, the free-space penalty deciding between fits of comparable point error. A refit
 is warm (``init``, the previous estimates): the nearest previous estimate is solved first and
 kept when it still explains the points and the free space, else the rectangle seed is the
@@ -58,6 +58,7 @@ from scipy.spatial import cKDTree
 
 from navigation.geometry import Squircle
 
+from . import _fit_kernel
 from .config import PerceptionConfig
 from .errors import ScanError
 
@@ -355,124 +356,29 @@ def _distance_weights(p: np.ndarray, q: np.ndarray) -> np.ndarray:
 
 
 class _Problem:
-    """The residuals of :func:`_residuals` and their Jacobian for :func:`_lm`, with the points and
-    the free points in one array (one ``_local`` / gauge evaluation per call instead of two), and
-    the Jacobian built only from the rows that are not identically zero there: the points, the
-    free points inside the estimate (``g < 1``, where the penalty is active: outside it the
-    penalty and its derivatives are 0) and the extent regularisation. Same values as
-    :func:`_residuals` / :func:`_residuals_jac` (tested); a free point outside the estimate, most
-    of them, costs nothing in the Jacobian. :meth:`jacobian` is evaluated where :meth:`residuals`
-    was last (the accepted step of :func:`_lm`) and takes the local coordinates and the terms of
-    the gauge from it (the same numbers, computed once: the arithmetic of :func:`_gauge_jac`
-    with fewer array operations)."""
+    """The residuals of :func:`_residuals` and their Jacobian as :func:`_lm`'s compiled kernel
+    evaluates them (:mod:`perception._fit_kernel`), with the points and the free points in one
+    array, and the Jacobian built only from the rows that are not identically zero there: the
+    points, the free points inside the estimate (``g < 1``, where the penalty is active: outside
+    it the penalty and its derivatives are 0) and the extent regularisation. Same values as
+    :func:`_residuals` / :func:`_residuals_jac` (tested); Python access for the tests, the kernel
+    calls the same functions inside its loop."""
 
-    __slots__ = ("Q", "nq", "nf", "w_free", "ref", "wq", "_at", "_terms")
+    __slots__ = ("q", "free", "w_free", "ref", "wq")
 
     def __init__(self, q: np.ndarray, free: np.ndarray, w_free: float, ref=None, wq=None):
-        self.nq, self.nf = len(q), len(free)
-        self.Q = np.concatenate((q, free)) if len(free) else q
-        self.w_free, self.ref, self.wq = w_free, ref, wq
-        self._at, self._terms = None, None
+        self.q, self.free, self.w_free, self.ref, self.wq = q, free, w_free, ref, wq
 
     def residuals(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``(residuals, g)``: :func:`_residuals` at ``p`` and the gauge of every row of ``Q``."""
-        u, v = _local(p, self.Q)
-        a, b = math.exp(p[2]), math.exp(p[3])
-        # (:func:`_gauge_xy`, its terms kept for :meth:`jacobian`)
-        x, y = u / a, v / b
-        x2, y2 = x * x, y * y
-        T = x2 * x2 + y2 * y2 + (2.0 - 4.0 * p[5] * p[5]) * x2 * y2
-        g = np.sqrt(0.5 * (x2 + y2 + np.sqrt(np.maximum(T, 0.0))))
-        rho = np.hypot(u, v)
-        self._at, self._terms = p, (u, v, x, y, x2, y2, T, rho)
-        nq = self.nq
-        n = nq + self.nf + (0 if self.ref is None else 2)
-        out = np.empty(n)
-        r = rho[:nq] * (1.0 - 1.0 / np.maximum(g[:nq], 1e-6))
-        out[:nq] = r if self.wq is None else r * self.wq
-        if self.nf:
-            gf = np.maximum(g[nq:], 0.2)
-            out[nq:nq + self.nf] = self.w_free * rho[nq:] * np.maximum(1.0 / gf - 1.0, 0.0)
-        if self.ref is not None:
-            ref = self.ref
-            out[n - 2] = ref[2] * max(a - ref[0], 0.0)
-            out[n - 1] = ref[2] * max(b - ref[1], 0.0)
-        return out, g
+        """``(residuals, g)``: :func:`_residuals` at ``p`` and the gauge of every point and free point."""
+        return _fit_kernel.residuals(p, self.q, self.free, self.w_free, self.ref, self.wq)
 
     def jacobian(self, p: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
         """``(J, rows)``: the rows ``rows`` of :func:`_residuals_jac` at ``p`` (``None``: all rows),
         the others being zero there; ``g`` is the gauge :meth:`residuals` returned at ``p``."""
-        if self._at is not p:
-            self.residuals(p)
-        nq, nf = self.nq, self.nf
-        rows = None
-        u, v, x, y, x2, y2, T, rho = self._terms
-        if nf:
-            act = np.flatnonzero(g[nq:] < 1.0)
-            if len(act) < nf:
-                rows = np.concatenate((np.arange(nq), nq + act))
-                u, v, x, y, x2, y2, T, rho = (t[rows] for t in self._terms)
-            nf = len(act)
-        # :func:`_gauge_jac`, term by term (the same arithmetic)
-        a, b, s = math.exp(p[2]), math.exp(p[3]), p[5]
-        c, sn = math.cos(p[4]), math.sin(p[4])
-        k = 2.0 - 4.0 * s * s
-        R = np.sqrt(np.maximum(T, 1e-300))
-        gg = np.sqrt(np.maximum(0.5 * (x2 + y2 + R), 1e-300))
-        R2 = 2.0 * R
-        dBx = x + (2.0 * x2 * x + k * x * y2) / R2
-        dBy = y + (2.0 * y2 * y + k * x2 * y) / R2
-        g2 = 2.0 * gg
-        gx, gy = dBx / (g2 * a), dBy / (g2 * b)
-        m = len(u)
-        dg = np.empty((m, 6))
-        dg[:, 0] = gx * -c + gy * sn
-        dg[:, 1] = gx * -sn + gy * -c
-        dg[:, 2] = -dBx * x / g2
-        dg[:, 3] = -dBy * y / g2
-        dg[:, 4] = gx * v - gy * u
-        dg[:, 5] = -2.0 * s * x2 * y2 / R / g2
-        rc = np.maximum(rho, 1e-300)
-        dr0 = (u * -c + v * sn) / rc
-        dr1 = (u * -sn + v * -c) / rc
-        n = nq + nf + (0 if self.ref is None else 2)
-        J = np.empty((n, 6))
-        gq, dq = gg[:nq], dg[:nq]
-        clamp = gq < 1e-6
-        if np.any(clamp):
-            dq[clamp] = 0.0
-            gq = np.maximum(gq, 1e-6)
-        Jq = J[:nq]
-        np.multiply((rho[:nq] / (gq * gq))[:, None], dq, out=Jq)
-        e = 1.0 - 1.0 / gq
-        Jq[:, 0] += dr0[:nq] * e
-        Jq[:, 1] += dr1[:nq] * e
-        if self.wq is not None:
-            Jq *= self.wq[:, None]
-        if nf:
-            gf, dgf, rf = gg[nq:], dg[nq:], rho[nq:]
-            active = gf < 1.0
-            low = gf < 0.2
-            gf = np.maximum(gf, 0.2)
-            dgf[low] = 0.0
-            Jf = J[nq:nq + nf]
-            np.multiply((rf / (gf * gf))[:, None], dgf, out=Jf)
-            np.negative(Jf, out=Jf)
-            ef = np.maximum(1.0 / gf - 1.0, 0.0)
-            Jf[:, 0] += dr0[nq:] * ef
-            Jf[:, 1] += dr1[nq:] * ef
-            if self.w_free != 1.0:
-                Jf *= self.w_free
-            Jf[~active] = 0.0
-        if self.ref is not None:
-            ref = self.ref
-            J[n - 2:] = 0.0
-            J[n - 2, 2] = ref[2] * a if a > ref[0] else 0.0
-            J[n - 1, 3] = ref[2] * b if b > ref[1] else 0.0
-            if rows is not None:
-                N = self.nq + self.nf
-                rows = np.concatenate((rows, (N, N + 1)))
-        return J, rows
+        J, rows = _fit_kernel.jacobian(p, g, self.q, self.free, self.w_free, self.ref, self.wq)
+        n = len(self.q) + len(self.free) + (0 if self.ref is None else 2)
+        return J, (None if len(rows) == n else rows)
 
 
 def _lm(x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, scale: np.ndarray, args: tuple, *, max_nfev: int = _LM_NFEV,
@@ -484,56 +390,10 @@ def _lm(x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, scale: np.ndarray, args:
     ``(x, residuals)``. The six-parameter problem needs no more than a 6 x 6 solve per step;
     ``scipy.optimize.least_squares`` spent about 60 % of a fit in its own bookkeeping
     (measured: 6 ms per fit of 160 points and 200 free points, 2.3 ms of it in the residuals
-    and Jacobians). ``args = (q, free, w_free, ref, wq)``; evaluated by :class:`_Problem`."""
-    prob = _Problem(*args)
-    x = x0.copy()
-    r, gx = prob.residuals(x)
-    F = 0.5 * float(r @ r)
-    J, rows = prob.jacobian(x, gx)
-    J *= scale
-    nfev, mu, nu = 1, None, 2.0
-    eye = np.eye(len(x))
-    hi_, lo_ = hi - 1e-12, lo + 1e-12
-    while nfev < max_nfev:
-        A = J.T @ J
-        g = J.T @ (r if rows is None else r[rows])
-        if mu is None:
-            mu = 1e-4 * max(float(np.max(np.diag(A))), 1e-12)
-        # variables at a bound that the descent direction pushes outwards stay there
-        up, down = x >= hi_, x <= lo_
-        free_ = ~((up & (g < 0)) | (down & (g > 0))) if (up.any() or down.any()) else None
-        try:
-            if free_ is None or free_.all():
-                h = np.linalg.solve(A + mu * eye, -g)
-            else:
-                h = np.zeros_like(x)
-                h[free_] = np.linalg.solve((A + mu * eye)[np.ix_(free_, free_)], -g[free_])
-        except np.linalg.LinAlgError:
-            break
-        # (np.clip, np.linalg.norm: the same numbers without the wrappers' overhead)
-        xn = np.minimum(np.maximum(x + h * scale, lo), hi)
-        hz = (xn - x) / scale
-        xs = x / scale
-        small = math.sqrt(float(hz @ hz)) < xtol * (xtol + math.sqrt(float(xs @ xs)))
-        rn, gn = prob.residuals(xn)
-        nfev += 1
-        Fn = 0.5 * float(rn @ rn)
-        if math.isfinite(Fn) and Fn < F:
-            pred = -(float(g @ hz) + 0.5 * float(hz @ A @ hz))
-            rho = (F - Fn) / pred if pred > 0 else 0.0
-            x, r, dF, F = xn, rn, F - Fn, Fn
-            mu *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
-            nu = 2.0
-            if (dF < ftol * F and rho > 0.25) or small:
-                break
-            J, rows = prob.jacobian(x, gn)
-            J *= scale
-        else:
-            if small:
-                break
-            mu *= nu
-            nu *= 2.0
-    return x, r
+    and Jacobians). ``args = (q, free, w_free, ref, wq)``; runs in the compiled kernel
+    :func:`perception._fit_kernel.lm` (the residuals and Jacobian rows of :class:`_Problem`)."""
+    q, free, w_free, ref, wq = args
+    return _fit_kernel.lm(x0, lo, hi, scale, q, free, w_free, ref, wq, max_nfev=max_nfev, xtol=xtol, ftol=ftol)
 
 
 def _solve(seed: np.ndarray, q: np.ndarray, free: np.ndarray, cfg: PerceptionConfig, ref_seed=None):
