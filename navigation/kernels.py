@@ -26,10 +26,11 @@ def _modules():
     return (_geom_kernel, _sample_kernel, _pair_kernel, _lp_kernel, _center_kernel)
 
 
-def compiled_signatures() -> dict[str, int]:
-    """Number of compiled type signatures of every kernel (``module.function``) in this process."""
+def compiled_signatures(modules=()) -> dict[str, int]:
+    """Number of compiled type signatures of every kernel (``module.function``) of the navigation
+    kernel modules and of ``modules`` (other packages' kernel modules) in this process."""
     out = {}
-    for mod in _modules():
+    for mod in _modules() + tuple(modules):
         for name, obj in vars(mod).items():
             if isinstance(obj, numba.core.registry.CPUDispatcher):
                 out[f"{mod.__name__}.{name}"] = len(obj.signatures)

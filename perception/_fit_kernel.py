@@ -382,3 +382,21 @@ def jacobian(p, g, q, free, w_free: float, ref=None, wq=None) -> tuple[np.ndarra
     rows = np.empty(n, np.int64)
     m = _jacobian_into(_arr(p), Q, nq, nf, float(w_free), refa, has_ref, wqa, has_wq, _arr(g), J, rows)
     return J[:m], rows[:m]
+
+
+def warm_up() -> float:
+    """Compile (or load from numba's cache) the fit kernel with the argument types the map uses
+    (see :mod:`navigation.kernels`); returns the seconds it took."""
+    import time
+
+    t0 = time.perf_counter()
+    a = np.linspace(0.0, 2.0 * np.pi, 24, endpoint=False)
+    q = np.stack((np.cos(a), 0.5 * np.sin(a)), axis=1)
+    x0 = np.array([0.05, -0.02, np.log(0.9), np.log(0.45), 0.1, 0.5])
+    lo = np.array([-np.inf, -np.inf, -5.0, -5.0, -np.inf, 0.0])
+    hi = np.array([np.inf, np.inf, 3.0, 3.0, np.inf, 0.99])
+    scale = np.array([0.05, 0.05, 0.2, 0.2, 0.1, 0.1])
+    lm(x0, lo, hi, scale, q, np.zeros((0, 2)), 1.0)
+    lm(x0, lo, hi, scale, q, 0.5 * q, 1.0, (1.0, 0.5, 0.5), np.ones(len(q)))
+    return time.perf_counter() - t0
+

@@ -127,7 +127,9 @@ def _setup(a):
     notice = threading.Timer(1.0, lambda: print("tamp-service: compiling the navigation kernels (first run on "
                                                 "this machine only, 10-30 s) ...", file=sys.stderr, flush=True))
     notice.start()
-    seconds = warm_up()
+    from perception._fit_kernel import warm_up as warm_up_fit
+
+    seconds = warm_up() + warm_up_fit()
     notice.cancel()
     if seconds > 1.0:
         print(f"tamp-service: navigation kernels ready in {seconds:.1f} s (cached from now on)", file=sys.stderr,

@@ -137,7 +137,8 @@ def test_value_tends_to_mu_on_every_boundary(kind, key):
 
 
 @pytest.mark.xfail(strict=False, reason=(
-    "known limitation, issue 2 open: next to chained walls the chain amplifies normal distances "
+    "conditioning target beyond the checks of issue 2 (known limitation): next to chained walls the "
+    "chain amplifies normal distances "
     "(docs/navigation.md), so the value approaches mu slowly (e.g. 0.94, 0.97, 0.987 at 1e-5, 1e-6, "
     "1e-7 m); the limit itself is checked by test_value_tends_to_mu_on_every_boundary"))
 @pytest.mark.parametrize(("kind", "key"), WORLD_CASES, ids=WORLD_IDS)

@@ -1,6 +1,8 @@
-"""navigation.kernels.warm_up compiles every kernel the construction, the navigation function
-and the simulator's lidar use: afterwards, building and evaluating forests of random and shared
-worlds and scanning with the lidar compile nothing new (checked in a fresh process)."""
+"""navigation.kernels.warm_up and perception._fit_kernel.warm_up (which tamp-service calls at
+start-up) compile every kernel the construction, the navigation function, the simulator's lidar
+and the obstacle map use: afterwards, building and evaluating forests of random and shared
+worlds, scanning with the lidar and updating an obstacle map compile nothing new (checked in a
+fresh process)."""
 
 import json
 import subprocess
@@ -14,12 +16,15 @@ import json
 import numpy as np
 import navigation
 import navigation.forest as F
+import perception._fit_kernel as fit_kernel
 from navigation.kernels import compiled_signatures, warm_up
+from perception import ObstacleMap
 from service.sim import Simulator
 from tests.worldgen import random_forest_world
 
 warm_up()
-before = compiled_signatures()
+fit_kernel.warm_up()
+before = compiled_signatures((fit_kernel,))
 worlds = [random_forest_world(seed, n_obstacles=n, max_depth=4) for seed, n in ((0, 8), (1, 15), (2, 25))]
 worlds += [navigation.load_world(name) for name in ("office", "cluttered20")]
 for w in worlds:
@@ -30,9 +35,13 @@ for w in worlds:
     nf = navigation.NavigationFunction(forest, goal)
     nf.evaluate(np.asarray(goal)[None] + 0.05, 2)
     nf.evaluate(np.asarray(goal) + 0.05, 2)
-sim = Simulator(navigation.load_world("office"), seed=0)
-sim.scan()
-after = compiled_signatures()
+office = navigation.load_world("office")
+sim = Simulator(office, seed=0)
+omap = ObstacleMap.from_world(office)
+for k in range(40):
+    sim.step((0.3, 0.4))
+    omap.update_scan(sim.scan_message(), sim.pose_message())
+after = compiled_signatures((fit_kernel,))
 print(json.dumps({k: [before.get(k), v] for k, v in after.items() if before.get(k) != v}))
 """
 
