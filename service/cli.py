@@ -128,8 +128,9 @@ def _setup(a):
                                                 "this machine only, 10-30 s) ...", file=sys.stderr, flush=True))
     notice.start()
     from perception._fit_kernel import warm_up as warm_up_fit
+    from tamp._segment_kernel import warm_up as warm_up_segments
 
-    seconds = warm_up() + warm_up_fit()
+    seconds = warm_up() + warm_up_fit() + warm_up_segments()
     notice.cancel()
     if seconds > 1.0:
         print(f"tamp-service: navigation kernels ready in {seconds:.1f} s (cached from now on)", file=sys.stderr,

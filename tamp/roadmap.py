@@ -62,6 +62,7 @@ import numpy as np
 from navigation.errors import WorldError
 from navigation.geometry import Squircle, beta_rows, pack
 
+from ._segment_kernel import segments_clear_rows
 from .errors import TampError
 
 __all__ = ["RoadmapConfig", "Roadmap", "segments_clear", "descent_candidates", "grown"]
@@ -125,103 +126,6 @@ def grown(sq: Squircle, amount: float) -> Squircle:
 
 
 # ---------------------------------------------------------------------- exact segment tests
-def _line_coeffs(P: np.ndarray, a: np.ndarray, d: np.ndarray):
-    """The lines ``a + t d`` in the normalised frames of rows ``P (K, 7)``: ``(x0, y0, dx, dy,
-    k)`` with the frame point ``(x0 + t dx, y0 + t dy)`` and ``k = 2 - 4 s^2`` (computed once
-    per (segment, squircle) pair; :func:`_line_beta` evaluates them at any ``t``)."""
-    cx, cy, c, s = P[:, 0], P[:, 1], P[:, 2], P[:, 3]
-    ex, ey = a[:, 0] - cx, a[:, 1] - cy
-    x0 = (c * ex + s * ey) / P[:, 4]
-    y0 = (-s * ex + c * ey) / P[:, 5]
-    dx = (c * d[:, 0] + s * d[:, 1]) / P[:, 4]
-    dy = (-s * d[:, 0] + c * d[:, 1]) / P[:, 5]
-    return x0, y0, dx, dy, 2.0 - 4.0 * P[:, 6] ** 2
-
-
-def _line_beta(x0, y0, dx, dy, k, t: np.ndarray):
-    """``beta`` at ``a + t d`` and its exact derivative in ``t``, from :func:`_line_coeffs`."""
-    x, y = x0 + t * dx, y0 + t * dy
-    x2, y2 = x * x, y * y
-    root = np.sqrt(np.maximum(x2 * x2 + y2 * y2 + k * x2 * y2, 0.0))
-    beta = 0.5 * (x2 + y2 + root) - 1.0
-    droot_num = 4.0 * x2 * x * dx + 4.0 * y2 * y * dy + k * (2.0 * x * dx * y2 + 2.0 * x2 * y * dy)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        droot = np.where(root > 0, droot_num / (2.0 * np.where(root > 0, root, 1.0)), 0.0)
-    dbeta = x * dx + y * dy + 0.5 * droot
-    return beta, dbeta
-
-
-def _blocked(P: np.ndarray, a: np.ndarray, b: np.ndarray, seg: np.ndarray, n: int) -> np.ndarray:
-    """Which of ``n`` segments are blocked, from the (segment, squircle) pairs ``seg[k]``,
-    ``P[k]`` with ends ``a[k]``, ``b[k]``: ``(n,)`` bool, True where some pair is not certified
-    to miss.
-
-    Exact up to rounding: ``beta`` is convex along the segment; its minimum is bracketed on the
-    sign of its exact derivative and certified positive by tangent lines (see the module
-    docstring). Pairs still undecided after the bracketing count as blocked. A pair whose
-    segment is already blocked by another pair is dropped (its verdict cannot change the
-    segment's).
-    """
-    blocked = np.zeros(n, dtype=bool)
-    K = len(P)
-    if K == 0:
-        return blocked
-    line = _line_coeffs(P, a, b - a)
-    # pairs whose segment misses the squircle's bounding rectangle (the square [-1, 1]^2 of the
-    # normalised frame, which contains the unit squircle) by a clear margin cannot block:
-    # separating-axis test on the frame's axes and the segment's normal
-    x0, y0, dx, dy, _ = line
-    x1, y1 = x0 + dx, y0 + dy
-    tol = 1.0 + 1e-9
-    sep = ((np.minimum(x0, x1) > tol) | (np.maximum(x0, x1) < -tol) | (np.minimum(y0, y1) > tol)
-           | (np.maximum(y0, y1) < -tol) | (np.abs(dy * x0 - dx * y0) > tol * (np.abs(dx) + np.abs(dy))))
-    if sep.any():
-        near = ~sep
-        P, seg = P[near], seg[near]
-        line = tuple(v[near] for v in line)
-        K = len(P)
-        if K == 0:
-            return blocked
-    zero, one = np.zeros(K), np.ones(K)
-    f0, g0 = _line_beta(*line, zero)
-    f1, g1 = _line_beta(*line, one)
-    ends_out = (f0 > 0) & (f1 > 0)
-    blocked[seg[~ends_out]] = True  # an end inside the squircle
-    # otherwise the minimum is at an end (outside) unless g0 < 0 < g1
-    act = np.nonzero(ends_out & (g0 < 0) & (g1 > 0))[0]
-    act = act[~blocked[seg[act]]]
-    # the bracket of every active pair, one row each: lo, hi, f(lo), f'(lo), f(hi), f'(hi);
-    # the active pairs' lines and segments are carried along and filtered with it
-    br = np.stack((zero[act], one[act], f0[act], g0[act], f1[act], g1[act]))
-    ln = np.stack([v[act] for v in line])
-    sg = seg[act]
-    for _ in range(_BISECTION_STEPS):
-        if sg.size == 0:
-            break
-        lo, hi, flo, glo, fhi, ghi = br
-        # the tangent lines at the bracket ends, flo + glo (t - lo) (falling) and
-        # fhi + ghi (t - hi) (rising), cross at t* in [lo, hi]; the convex beta lies above both,
-        # so their value there is a lower bound of beta on the bracket
-        denom = ghi - glo
-        tstar = np.minimum(np.maximum((flo - fhi + ghi * hi - glo * lo) / denom, lo), hi)  # np.clip is slower
-        ok = np.maximum(flo + glo * (tstar - lo), fhi + ghi * (tstar - hi)) > 0
-        # split where the derivative's chord vanishes (the minimiser of a quadratic: beta of an
-        # ellipse is one), kept a quarter of the width from either end so that the bracket
-        # shrinks by at least a quarter per step
-        width = hi - lo
-        mid = np.minimum(np.maximum(lo - glo * width / denom, lo + 0.25 * width), hi - 0.25 * width)
-        fm, gm = _line_beta(*ln, mid)
-        hit = ~ok & (fm <= 0)
-        blocked[sg[hit]] = True
-        keep = ~ok & ~hit
-        keep &= ~blocked[sg]
-        left = gm < 0  # minimum right of mid: the bracket becomes [mid, hi], else [lo, mid]
-        br = np.where(left, np.stack((mid, hi, fm, gm, fhi, ghi)), np.stack((lo, mid, flo, glo, fm, gm)))
-        br, ln, sg = br[:, keep], ln[:, keep], sg[keep]
-    blocked[sg] = True  # undecided
-    return blocked
-
-
 def _point_segment_distance(c: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Distances ``(K, M)`` from centres ``c (M, 2)`` to segments ``[a, b] (K, 2)``."""
     return np.sqrt(_point_segment_distance2(c, a, b))
@@ -257,24 +161,9 @@ def segments_clear(P: np.ndarray, a, b) -> np.ndarray:
     (K,) bool
         Exact (up to rounding, conservative when undecided) per the module docstring. The
         workspace is not checked here: by convexity a segment is inside it iff its ends are.
+        Compiled: :func:`tamp._segment_kernel.segments_clear_rows`, pair by pair.
     """
-    a = np.asarray(a, dtype=float).reshape(-1, 2)
-    b = np.asarray(b, dtype=float).reshape(-1, 2)
-    K, M = len(a), len(P)
-    clear = np.ones(K, dtype=bool)
-    if K == 0 or M == 0:
-        return clear
-    radius = np.hypot(P[:, 4], P[:, 5])  # half-diagonal of the bounding rectangle
-    reach2 = (radius * (1.0 + 1e-9)) ** 2
-    step = max(1, _CHUNK // M)
-    for lo in range(0, K, step):
-        hi = min(K, lo + step)
-        near = _point_segment_distance2(P[:, :2], a[lo:hi], b[lo:hi]) <= reach2[None, :]
-        k, m = np.nonzero(near)
-        if k.size == 0:
-            continue
-        clear[lo:hi] &= ~_blocked(P[m], a[lo:hi][k], b[lo:hi][k], k, hi - lo)
-    return clear
+    return segments_clear_rows(P, a, b, _BISECTION_STEPS)
 
 
 # ---------------------------------------------------------------------- roadmap

@@ -1,8 +1,8 @@
-"""navigation.kernels.warm_up and perception._fit_kernel.warm_up (which tamp-service calls at
-start-up) compile every kernel the construction, the navigation function, the simulator's lidar
-and the obstacle map use: afterwards, building and evaluating forests of random and shared
-worlds, scanning with the lidar and updating an obstacle map compile nothing new (checked in a
-fresh process)."""
+"""The warm-ups tamp-service calls at start-up (navigation.kernels, perception._fit_kernel,
+tamp._segment_kernel) compile every kernel the construction, the navigation function, the
+simulator's lidar, the obstacle map and the roadmap use: afterwards, building and evaluating
+forests of random and shared worlds, scanning with the lidar, updating an obstacle map and
+building a roadmap compile nothing new (checked in a fresh process)."""
 
 import json
 import subprocess
@@ -17,6 +17,7 @@ import numpy as np
 import navigation
 import navigation.forest as F
 import perception._fit_kernel as fit_kernel
+import tamp._segment_kernel as segment_kernel
 from navigation.kernels import compiled_signatures, warm_up
 from perception import ObstacleMap
 from service.sim import Simulator
@@ -24,7 +25,8 @@ from tests.worldgen import random_forest_world
 
 warm_up()
 fit_kernel.warm_up()
-before = compiled_signatures((fit_kernel,))
+segment_kernel.warm_up()
+before = compiled_signatures((fit_kernel, segment_kernel))
 worlds = [random_forest_world(seed, n_obstacles=n, max_depth=4) for seed, n in ((0, 8), (1, 15), (2, 25))]
 worlds += [navigation.load_world(name) for name in ("office", "cluttered20")]
 for w in worlds:
@@ -41,7 +43,9 @@ omap = ObstacleMap.from_world(office)
 for k in range(40):
     sim.step((0.3, 0.4))
     omap.update_scan(sim.scan_message(), sim.pose_message())
-after = compiled_signatures((fit_kernel,))
+from tamp.roadmap import Roadmap
+Roadmap.from_world(office)
+after = compiled_signatures((fit_kernel, segment_kernel))
 print(json.dumps({k: [before.get(k), v] for k, v in after.items() if before.get(k) != v}))
 """
 
