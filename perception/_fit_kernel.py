@@ -398,5 +398,8 @@ def warm_up() -> float:
     scale = np.array([0.05, 0.05, 0.2, 0.2, 0.1, 0.1])
     lm(x0, lo, hi, scale, q, np.zeros((0, 2)), 1.0)
     lm(x0, lo, hi, scale, q, 0.5 * q, 1.0, (1.0, 0.5, 0.5), np.ones(len(q)))
+    from . import _shape_kernel  # the refit's geometry kernels
+
+    _shape_kernel.warm_up()
     return time.perf_counter() - t0
 

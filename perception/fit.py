@@ -58,7 +58,7 @@ from scipy.spatial import cKDTree
 
 from navigation.geometry import Squircle
 
-from . import _fit_kernel
+from . import _fit_kernel, _shape_kernel
 from .config import PerceptionConfig
 from .errors import ScanError
 
@@ -803,9 +803,49 @@ def _overlap(a: Squircle, b: Squircle, grow: float) -> bool:
     """Whether ``a`` and ``b``, both grown by about ``grow``, overlap (boundary samples)."""
     if math.dist(a.center, b.center) > a.bounding_radius + b.bounding_radius + 2 * grow:
         return False
-    A = Squircle(a.center, a.width + 2 * grow, a.height + 2 * grow, a.theta, a.s)
-    B = Squircle(b.center, b.width + 2 * grow, b.height + 2 * grow, b.theta, b.s)
-    return bool(np.any(gauge(B, A.boundary_points(64)) <= 1.0) or np.any(gauge(A, B.boundary_points(64)) <= 1.0))
+    # the grown squircles' samples and gauges in compiled kernels (bit-identical to
+    # ``gauge(B, A.boundary_points(64)) <= 1`` and the converse: :mod:`perception._shape_kernel`)
+    A = (a.center, a.width + 2 * grow, a.height + 2 * grow, a.theta, a.s)
+    B = (b.center, b.width + 2 * grow, b.height + 2 * grow, b.theta, b.s)
+    return (_shape_kernel.gauge_any_inside(*B, _shape_kernel.boundary_points(*A, 64))
+            or _shape_kernel.gauge_any_inside(*A, _shape_kernel.boundary_points(*B, 64)))
+
+
+def _cycle_basis(adj: dict[int, list[int]]) -> list[list[int]]:
+    """``networkx.cycle_basis`` of the graph with adjacency lists ``adj`` (nodes in insertion
+    order, neighbours in the order the edges were added): the same algorithm line by line, so
+    the same cycles in the same order (networkx's per-call overhead was most of the time spent
+    on graphs of a few pieces)."""
+    gnodes = dict.fromkeys(adj)
+    cycles = []
+    while gnodes:
+        root = gnodes.popitem()[0]
+        stack = [root]
+        pred = {root: root}
+        used = {root: set()}
+        while stack:
+            z = stack.pop()
+            zused = used[z]
+            for nbr in adj[z]:
+                if nbr not in used:
+                    pred[nbr] = z
+                    stack.append(nbr)
+                    used[nbr] = {z}
+                elif nbr == z:
+                    cycles.append([z])
+                elif nbr not in zused:
+                    pn = used[nbr]
+                    cycle = [nbr, z]
+                    p = pred[z]
+                    while p not in pn:
+                        cycle.append(p)
+                        p = pred[p]
+                    cycle.append(p)
+                    cycles.append(cycle)
+                    used[nbr].add(z)
+        for node in pred:
+            gnodes.pop(node, None)
+    return cycles
 
 
 def _break_cycles(q, vw, free, fits: list[Fit], cfg: PerceptionConfig, grow: float, init=None,
@@ -813,18 +853,23 @@ def _break_cycles(q, vw, free, fits: list[Fit], cfg: PerceptionConfig, grow: flo
     """Merge pieces until the pieces grown by ``grow`` (the robot radius) overlap as a tree:
     in the smallest cycle, the two overlapping pieces whose union one rectangle explains best
     become one piece, refitted to their points."""
-    import networkx as nx
-
     fits = list(fits)
     fr = None if free is None or not len(free) else np.asarray(free, dtype=float)
+    memo: dict[tuple[int, int], tuple] = {}  # overlaps of pairs of squircles (kept alive here)
     while len(fits) > 2:
-        G = nx.Graph()
-        G.add_nodes_from(range(len(fits)))
+        # the overlap graph (a few nodes: plain adjacency lists in networkx's neighbour order);
+        # pairs of unchanged pieces are not tested again
+        adj: dict[int, list[int]] = {k: [] for k in range(len(fits))}
         for a in range(len(fits)):
             for b in range(a + 1, len(fits)):
-                if _overlap(fits[a].squircle, fits[b].squircle, grow):
-                    G.add_edge(a, b)
-        cycles = nx.cycle_basis(G)
+                sa, sb = fits[a].squircle, fits[b].squircle
+                hit = memo.get((id(sa), id(sb)))
+                if hit is None or hit[0] is not sa or hit[1] is not sb:
+                    hit = memo[(id(sa), id(sb))] = (sa, sb, _overlap(sa, sb, grow))
+                if hit[2]:
+                    adj[a].append(b)
+                    adj[b].append(a)
+        cycles = _cycle_basis(adj)
         if not cycles:
             break
         cyc = min(cycles, key=len)
@@ -849,7 +894,7 @@ def _break_cycles(q, vw, free, fits: list[Fit], cfg: PerceptionConfig, grow: flo
         best = None
         for a in cyc:
             for b in cyc:
-                if a < b and G.has_edge(a, b):
+                if a < b and b in adj[a]:
                     idx = np.concatenate((fits[a].indices, fits[b].indices))
                     c = _piece_cost(q[idx], fr, cfg.free_cell) / len(idx)
                     if best is None or c < best[0]:
@@ -909,8 +954,12 @@ def _runs(q: np.ndarray, cfg: PerceptionConfig, fr, depth: int, cache=None, used
 def _cell_key(points: np.ndarray, cfg: PerceptionConfig) -> tuple:
     """Key of a point set by the ``voxel`` cells of its points (stable while averaged returns
     move within their cells)."""
-    cells = np.unique(np.floor(points / cfg.voxel).astype(np.int64), axis=0)
-    return len(points), hash(cells.tobytes())
+    # the set of cells as sorted unique linear codes (``np.unique(..., axis=0)`` of the rows,
+    # 10x slower, gave the same key equality: the code is one-to-one for cell indices below
+    # 2^31 in magnitude)
+    cells = np.floor(points / cfg.voxel).astype(np.int64)
+    codes = np.unique((cells[:, 0] << 32) + cells[:, 1])
+    return len(points), hash(codes.tobytes())
 
 
 def _reusable(f: Fit, q: np.ndarray, free, cfg: PerceptionConfig) -> bool:
@@ -1102,28 +1151,33 @@ def inflate(sq: Squircle, r: float, samples: int = 96) -> Squircle:
         raise ValueError(f"inflate radius must be finite and >= 0, got {r}")
     if r == 0:
         return sq
-    ref = sq.boundary_points(4 * samples)
-    spacing = float(np.max(np.linalg.norm(ref - np.roll(ref, 1, axis=0), axis=1)))
-    tree = cKDTree(ref)
+    # boundary samples and distances in compiled kernels (:mod:`perception._shape_kernel`, the
+    # same arithmetic as ``Squircle.boundary_points`` and the k-d tree's nearest distances:
+    # bit-identical); a candidate becomes a Squircle only when it is returned
+    ref = _shape_kernel.boundary_points(sq.center, sq.width, sq.height, sq.theta, sq.s, 4 * samples)
+    half = _shape_kernel.spacing(ref) / 2
+
+    def ext(n: int) -> float:
+        return 2 * 1.03 ** n * r + 2e-9
 
     def cand(n: int) -> Squircle:
-        ext = 2 * 1.03 ** n * r + 2e-9
-        return Squircle(sq.center, sq.width + ext, sq.height + ext, sq.theta, sq.s)
+        e = ext(n)
+        return Squircle(sq.center, sq.width + e, sq.height + e, sq.theta, sq.s)
 
-    def clear(c: Squircle) -> bool:
-        d, _ = tree.query(c.boundary_points(samples))
-        return float(d.min()) - spacing / 2 >= r
+    def clear(n: int) -> bool:
+        e = ext(n)
+        pts = _shape_kernel.boundary_points(sq.center, sq.width + e, sq.height + e, sq.theta, sq.s, samples)
+        return _shape_kernel.clear_of(ref, pts, half, r)
 
     # the steps of the estimates are small (n = 1..3 on the drives): the first few are tried in
     # order (the linear search, 1-4 tests instead of 8 for the bisection from 0..79), then bisection
     for n in range(_INFLATE_LINEAR):
-        c = cand(n)
-        if clear(c):
-            return c
+        if clear(n):
+            return cand(n)
     lo, hi = _INFLATE_LINEAR - 1, 79  # clear(cand(hi)) is assumed (k = 1.03^79 ~ 10: far enough)
     while hi - lo > 1:
         mid = (lo + hi) // 2
-        if clear(cand(mid)):
+        if clear(mid):
             hi = mid
         else:
             lo = mid

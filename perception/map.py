@@ -57,6 +57,7 @@ from navigation.errors import ForestError
 from navigation.forest import Forest, build_forest, check_forest
 from navigation.geometry import Squircle
 
+from . import _shape_kernel
 from .config import PerceptionConfig
 from .errors import PoseJumpError, ScanError, StampError
 from .fit import fit_cluster, fit_squircle, gauge, inflate, radial_error, rect_error
@@ -145,7 +146,7 @@ def _samples(sq: Squircle, n: int = 64) -> np.ndarray:
         return hit[1]
     if len(_SAMPLE_CACHE) > 4096:
         _SAMPLE_CACHE.clear()
-    pts = sq.boundary_points(n)
+    pts = _shape_kernel.boundary_points(sq.center, sq.width, sq.height, sq.theta, sq.s, n)  # = sq.boundary_points(n)
     _SAMPLE_CACHE[(id(sq), n)] = (sq, pts)
     return pts
 

@@ -1,0 +1,187 @@
+"""Compiled (numba) kernels of the squircle geometry of a refit (:mod:`perception.fit`).
+
+Each kernel runs the same arithmetic, operation by operation (no fastmath, no reassociation),
+as the numpy code it mirrors, so its results are bit-identical (tested in
+``tests/test_shape_kernel.py``):
+
+* :func:`boundary_points`: :meth:`navigation.geometry.Squircle.boundary_points` (``8 n + 1``
+  samples of :meth:`~navigation.geometry.Squircle.point_at`, arc length by ``np.linalg.norm``
+  of their differences and ``np.cumsum``, ``np.linspace`` targets, ``np.interp``). The
+  cosines and sines stay numpy's (``np.cos`` / ``np.sin`` may use SIMD code that rounds
+  differently from libm's): those of the fine grid depend only on ``n`` and are cached, those
+  of the interpolated angles are computed by numpy between the two kernels;
+* :func:`gauge_any_inside`: ``np.any(perception.fit.gauge(sq, pts) <= 1.0)``;
+* :func:`clear_of`: ``float(cKDTree(ref).query(pts)[0].min()) - spacing / 2 >= r`` of
+  :func:`perception.fit.inflate` (brute force: the minimum over every pair of
+  ``sqrt(dx * dx + dy * dy)``, the distance the k-d tree reports), stopping at the first pair
+  that decides;
+* :func:`spacing`: ``float(np.max(np.linalg.norm(ref - np.roll(ref, 1, axis=0), axis=1)))``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from navigation._geom_kernel import _arr
+
+__all__ = ["boundary_points", "gauge_any_inside", "clear_of", "spacing", "warm_up"]
+
+_JIT = dict(cache=True, nogil=True)
+_FINE: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+
+
+@numba.njit(**_JIT)
+def _points_into(out, ux, uy, cx, cy, hw, hh, ct, st, s2):
+    """``Squircle.point_at`` of the angles with cosines ``ux`` and sines ``uy`` into ``out``."""
+    for i in range(len(ux)):
+        m = ux[i] * uy[i]
+        rho = math.sqrt(2.0 / (1.0 + math.sqrt(max(1.0 - 4.0 * s2 * m * m, 0.0))))
+        lx = rho * ux[i] * hw
+        ly = rho * uy[i] * hh
+        out[i, 0] = cx + ct * lx - st * ly
+        out[i, 1] = cy + st * lx + ct * ly
+
+
+@numba.njit(**_JIT)
+def _psi_kernel(ux, uy, fine, cx, cy, hw, hh, ct, st, s2, n):
+    """Angles of ``n`` boundary points evenly spaced in arc length (``boundary_points`` up to the
+    final ``point_at``)."""
+    m_ = len(fine)
+    pts = np.empty((m_, 2))
+    _points_into(pts, ux, uy, cx, cy, hw, hh, ct, st, s2)
+    arc = np.empty(m_)
+    arc[0] = 0.0
+    for k in range(1, m_):
+        dx = pts[k, 0] - pts[k - 1, 0]
+        dy = pts[k, 1] - pts[k - 1, 1]
+        seg = math.sqrt(dx * dx + dy * dy)
+        arc[k] = seg if k == 1 else arc[k - 1] + seg
+    last = arc[m_ - 1]
+    step = last / n
+    psi = np.empty(n)
+    j = 0
+    for i in range(n):
+        if step == 0.0:  # np.linspace's branch for a zero step
+            x = (i / n) * last + 0.0
+        else:
+            x = i * step + 0.0
+        if math.isnan(x):
+            psi[i] = x
+            continue
+        # np.interp: j = index of the last sample <= x (the targets increase)
+        if x < arc[0]:
+            psi[i] = fine[0]
+            continue
+        if x > arc[m_ - 1]:
+            psi[i] = fine[m_ - 1]
+            continue
+        while j + 1 < m_ and arc[j + 1] <= x:
+            j += 1
+        if j == m_ - 1:
+            psi[i] = fine[j]
+        elif arc[j] == x:
+            psi[i] = fine[j]
+        else:
+            slope = (fine[j + 1] - fine[j]) / (arc[j + 1] - arc[j])
+            r = slope * (x - arc[j]) + fine[j]
+            if math.isnan(r):
+                r = slope * (x - arc[j + 1]) + fine[j + 1]
+                if math.isnan(r) and fine[j] == fine[j + 1]:
+                    r = fine[j]
+            psi[i] = r
+    return psi
+
+
+@numba.njit(**_JIT)
+def _points_kernel(ux, uy, cx, cy, hw, hh, ct, st, s2):
+    out = np.empty((len(ux), 2))
+    _points_into(out, ux, uy, cx, cy, hw, hh, ct, st, s2)
+    return out
+
+
+def _fine(n: int):
+    hit = _FINE.get(n)
+    if hit is None:
+        fine = np.linspace(0.0, 2 * np.pi, 8 * n + 1)
+        hit = _FINE[n] = (fine, np.cos(fine), np.sin(fine))
+    return hit
+
+
+def boundary_points(center, width: float, height: float, theta: float, s: float, n: int) -> np.ndarray:
+    """``Squircle(center, width, height, theta, s).boundary_points(n)`` (bit-identical)."""
+    if n < 3:
+        raise ValueError(f"boundary_points needs n >= 3, got {n}")
+    fine, fc, fs = _fine(n)
+    cx, cy = float(center[0]), float(center[1])
+    hw, hh = width / 2.0, height / 2.0
+    ct, st = math.cos(theta), math.sin(theta)
+    s2 = s ** 2
+    psi = _psi_kernel(fc, fs, fine, cx, cy, hw, hh, ct, st, s2, n)
+    return _points_kernel(np.cos(psi), np.sin(psi), cx, cy, hw, hh, ct, st, s2)
+
+
+@numba.njit(**_JIT)
+def _any_inside_kernel(pts, cx, cy, c, sn, hw, hh, k):
+    for i in range(len(pts)):
+        dx, dy = pts[i, 0] - cx, pts[i, 1] - cy
+        u = dx * c + dy * sn
+        v = dy * c - dx * sn
+        x = u / hw
+        y = v / hh
+        x2, y2 = x * x, y * y
+        g = math.sqrt(0.5 * (x2 + y2 + math.sqrt(max(x2 * x2 + y2 * y2 + k * x2 * y2, 0.0))))
+        if g <= 1.0:
+            return True
+    return False
+
+
+def gauge_any_inside(center, width: float, height: float, theta: float, s: float, pts: np.ndarray) -> bool:
+    """``np.any(perception.fit.gauge(Squircle(center, width, height, theta, s), pts) <= 1.0)``."""
+    return bool(_any_inside_kernel(pts, float(center[0]), float(center[1]), math.cos(theta), math.sin(theta),
+                                   width / 2, height / 2, 2.0 - 4.0 * s * s))
+
+
+@numba.njit(**_JIT)
+def _spacing_kernel(ref):
+    n = len(ref)
+    best = -math.inf
+    for i in range(n):
+        j = i - 1 if i > 0 else n - 1
+        dx = ref[i, 0] - ref[j, 0]
+        dy = ref[i, 1] - ref[j, 1]
+        d = math.sqrt(dx * dx + dy * dy)
+        if d > best or math.isnan(d):
+            best = d
+    return best
+
+
+def spacing(ref: np.ndarray) -> float:
+    """Largest distance between consecutive points of the closed polygon ``ref``."""
+    return float(_spacing_kernel(ref))
+
+
+@numba.njit(**_JIT)
+def _clear_kernel(ref, pts, half, r):
+    for i in range(len(pts)):
+        for j in range(len(ref)):
+            dx = pts[i, 0] - ref[j, 0]
+            dy = pts[i, 1] - ref[j, 1]
+            if not (math.sqrt(dx * dx + dy * dy) - half >= r):
+                return False
+    return True
+
+
+def clear_of(ref: np.ndarray, pts: np.ndarray, half: float, r: float) -> bool:
+    """``min over pairs |pts_i - ref_j| - half >= r``."""
+    return bool(_clear_kernel(ref, pts, half, r))
+
+
+def warm_up() -> None:
+    """Compile (or load from numba's cache) every kernel of this module."""
+    p = boundary_points((0.1, -0.2), 1.0, 0.5, 0.3, 0.9, 16)
+    gauge_any_inside((0.0, 0.0), 1.0, 0.5, 0.3, 0.9, _arr(p))
+    spacing(p)
+    clear_of(p, _arr(0.5 * p), 0.01, 0.1)

@@ -1,0 +1,159 @@
+"""The refit's compiled geometry (perception._shape_kernel) and the plain-Python pieces of
+perception.fit that replaced numpy / networkx / scipy calls give bit-identical results."""
+
+import json
+import math
+import random
+import subprocess
+import sys
+from pathlib import Path
+
+import networkx as nx
+import numpy as np
+from scipy.spatial import cKDTree
+
+from navigation._geom_kernel import _arr
+from navigation.geometry import Squircle
+from perception import _shape_kernel as K
+from perception import fit as F
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _random_squircles(n, seed=0):
+    rng = np.random.default_rng(seed)
+    for _ in range(n):
+        s = float(rng.choice([0.0, 0.1, 0.5, 0.9, 0.99, rng.uniform(0.0, 0.999)]))
+        yield rng, Squircle(tuple(rng.normal(size=2) * 5), rng.uniform(0.02, 4), rng.uniform(0.02, 4),
+                            rng.uniform(-7, 7), s)
+
+
+def test_boundary_points_gauge_spacing_clear_identical():
+    for rng, sq in _random_squircles(1500):
+        n = int(rng.choice([3, 16, 64, 96, 256, 384]))
+        ref = sq.boundary_points(n)
+        got = K.boundary_points(sq.center, sq.width, sq.height, sq.theta, sq.s, n)
+        assert np.array_equal(ref, got)
+        pts = ref + rng.normal(size=ref.shape) * rng.uniform(0, 1)
+        o = Squircle(tuple(np.asarray(sq.center) + rng.normal(size=2)), rng.uniform(0.02, 4), rng.uniform(0.02, 4),
+                     rng.uniform(-7, 7), float(rng.uniform(0, 0.99)))
+        assert bool(np.any(F.gauge(o, pts) <= 1.0)) == K.gauge_any_inside(o.center, o.width, o.height, o.theta,
+                                                                           o.s, _arr(pts))
+        sp = float(np.max(np.linalg.norm(ref - np.roll(ref, 1, axis=0), axis=1)))
+        assert K.spacing(got) == sp
+        dmin = float(cKDTree(ref).query(pts)[0].min())
+        for r in (dmin - sp / 2, np.nextafter(dmin - sp / 2, 1.0), np.nextafter(dmin - sp / 2, -1.0),
+                  dmin - sp / 2 - 0.01, dmin - sp / 2 + 0.01):
+            assert (dmin - sp / 2 >= r) == K.clear_of(got, _arr(pts), sp / 2, float(r))
+
+
+def _inflate_reference(sq, r, samples=96):
+    """perception.fit.inflate before the kernels (Squircle.boundary_points and a k-d tree)."""
+    if r == 0:
+        return sq
+    ref = sq.boundary_points(4 * samples)
+    spacing = float(np.max(np.linalg.norm(ref - np.roll(ref, 1, axis=0), axis=1)))
+    tree = cKDTree(ref)
+
+    def cand(n):
+        ext = 2 * 1.03 ** n * r + 2e-9
+        return Squircle(sq.center, sq.width + ext, sq.height + ext, sq.theta, sq.s)
+
+    def clear(c):
+        d, _ = tree.query(c.boundary_points(samples))
+        return float(d.min()) - spacing / 2 >= r
+
+    for n in range(F._INFLATE_LINEAR):
+        c = cand(n)
+        if clear(c):
+            return c
+    lo, hi = F._INFLATE_LINEAR - 1, 79
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if clear(cand(mid)):
+            hi = mid
+        else:
+            lo = mid
+    return cand(hi)
+
+
+def _overlap_reference(a, b, grow):
+    if math.dist(a.center, b.center) > a.bounding_radius + b.bounding_radius + 2 * grow:
+        return False
+    A = Squircle(a.center, a.width + 2 * grow, a.height + 2 * grow, a.theta, a.s)
+    B = Squircle(b.center, b.width + 2 * grow, b.height + 2 * grow, b.theta, b.s)
+    return bool(np.any(F.gauge(B, A.boundary_points(64)) <= 1.0) or np.any(F.gauge(A, B.boundary_points(64)) <= 1.0))
+
+
+def test_inflate_and_overlap_identical():
+    prev = None
+    for rng, sq in _random_squircles(300, seed=1):
+        r = float(rng.choice([0.0, 0.05, 0.2, rng.uniform(0, 1)]))
+        a, b = F.inflate(sq, r), _inflate_reference(sq, r)
+        assert (a.center, a.width, a.height, a.theta, a.s) == (b.center, b.width, b.height, b.theta, b.s)
+        if prev is not None:
+            for g in (0.0, 0.2, 0.5):
+                assert F._overlap(prev, sq, g) == _overlap_reference(prev, sq, g)
+                near = Squircle(tuple(np.asarray(prev.center) + rng.normal(size=2) * 0.5), sq.width, sq.height,
+                                sq.theta, sq.s)
+                assert F._overlap(prev, near, g) == _overlap_reference(prev, near, g)
+        prev = sq
+
+
+def test_cycle_basis_is_networkx():
+    rnd = random.Random(0)
+    for _ in range(3000):
+        n, p = rnd.randint(1, 12), rnd.random()
+        G = nx.Graph()
+        G.add_nodes_from(range(n))
+        adj = {k: [] for k in range(n)}
+        for a in range(n):
+            for b in range(a + 1, n):
+                if rnd.random() < p:
+                    G.add_edge(a, b)
+                    adj[a].append(b)
+                    adj[b].append(a)
+        assert F._cycle_basis(adj) == nx.cycle_basis(G)
+
+
+def test_cell_key_equality_is_that_of_unique_cells():
+    from perception.config import PerceptionConfig
+
+    cfg = PerceptionConfig.from_lidar()
+    rng = np.random.default_rng(3)
+    base = rng.uniform(-3, 3, size=(40, 2))
+    for _ in range(300):
+        a = base[rng.permutation(40)] + rng.normal(size=(40, 2)) * rng.choice([0.0, 0.2 * cfg.voxel, 2 * cfg.voxel])
+        b = base.copy()
+        same = np.array_equal(np.unique(np.floor(a / cfg.voxel).astype(np.int64), axis=0),
+                              np.unique(np.floor(b / cfg.voxel).astype(np.int64), axis=0))
+        assert (F._cell_key(a, cfg) == F._cell_key(b, cfg)) == same
+
+
+SCRIPT = r"""
+import json
+import navigation
+import perception._fit_kernel as fit_kernel
+import perception._shape_kernel as shape_kernel
+from navigation.kernels import compiled_signatures, warm_up
+from perception import ObstacleMap
+from service.sim import Simulator
+
+warm_up()
+fit_kernel.warm_up()
+before = compiled_signatures((shape_kernel,))
+office = navigation.load_world("office")
+sim = Simulator(office, seed=0)
+omap = ObstacleMap.from_world(office)
+for k in range(40):
+    sim.step((0.3, 0.4))
+    omap.update_scan(sim.scan_message(), sim.pose_message())
+after = compiled_signatures((shape_kernel,))
+print(json.dumps({k: [before.get(k), v] for k, v in after.items() if before.get(k) != v}))
+"""
+
+
+def test_fit_kernel_warm_up_covers_shape_kernels():
+    out = subprocess.run([sys.executable, "-c", SCRIPT], cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert json.loads(out.stdout.strip().splitlines()[-1]) == {}
