@@ -15,7 +15,13 @@ as the numpy code it mirrors, so its results are bit-identical (tested in
   :func:`perception.fit.inflate` (brute force: the minimum over every pair of
   ``sqrt(dx * dx + dy * dy)``, the distance the k-d tree reports), stopping at the first pair
   that decides;
-* :func:`spacing`: ``float(np.max(np.linalg.norm(ref - np.roll(ref, 1, axis=0), axis=1)))``.
+* :func:`spacing`: ``float(np.max(np.linalg.norm(ref - np.roll(ref, 1, axis=0), axis=1)))``;
+* :func:`gauge` / :func:`radial_error`: :func:`perception.fit.gauge` / :func:`perception.fit.radial_error`
+  (elementwise: the same operations per row);
+* :func:`rect_test`: ``_Rect.error`` and ``_Rect.free_inside`` of :mod:`perception.fit` in one
+  pass; the mean of the squared distances is numpy's pairwise summation
+  (:func:`_pairwise_sum`, the algorithm of ``np.add.reduce`` on a contiguous array), so the
+  RMS is the same to the last bit.
 """
 
 from __future__ import annotations
@@ -27,7 +33,8 @@ import numpy as np
 
 from navigation._geom_kernel import _arr
 
-__all__ = ["boundary_points", "gauge_any_inside", "clear_of", "spacing", "warm_up"]
+__all__ = ["boundary_points", "gauge_any_inside", "clear_of", "spacing", "gauge", "radial_error", "rect_test",
+           "warm_up"]
 
 _JIT = dict(cache=True, nogil=True)
 _FINE: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
@@ -179,9 +186,150 @@ def clear_of(ref: np.ndarray, pts: np.ndarray, half: float, r: float) -> bool:
     return bool(_clear_kernel(ref, pts, half, r))
 
 
+@numba.njit(**_JIT)
+def _pairwise_block(a, lo, n):
+    """numpy's pairwise sum of ``a[lo:lo + n]``, ``n <= 128`` (no further halving)."""
+    if n < 8:
+        res = 0.0
+        for i in range(lo, lo + n):
+            res += a[i]
+        return res
+    r0, r1, r2, r3 = a[lo], a[lo + 1], a[lo + 2], a[lo + 3]
+    r4, r5, r6, r7 = a[lo + 4], a[lo + 5], a[lo + 6], a[lo + 7]
+    i = 8
+    stop = n - n % 8
+    while i < stop:
+        k = lo + i
+        r0 += a[k]
+        r1 += a[k + 1]
+        r2 += a[k + 2]
+        r3 += a[k + 3]
+        r4 += a[k + 4]
+        r5 += a[k + 5]
+        r6 += a[k + 6]
+        r7 += a[k + 7]
+        i += 8
+    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < n:
+        res += a[lo + i]
+        i += 1
+    return res
+
+
+@numba.njit(**_JIT)
+def _pairwise_sum(a, lo, n):
+    """``np.add.reduce`` of the contiguous ``a[lo:lo + n]``: numpy's pairwise summation (blocks of
+    at most 128 summed in 8 interleaved partial sums, larger ranges halved at multiples of 8:
+    ``sum(lo, n) = sum(lo, n2) + sum(lo + n2, n - n2)``), its recursion run on an explicit stack
+    (a recursive cached kernel called from another kernel crashed numba 0.68)."""
+    if n <= 128:
+        return _pairwise_block(a, lo, n)
+    fl = np.empty(64, np.int64)  # frames: start, length, phase (0 new, 1 left pending, 2 right pending)
+    fn = np.empty(64, np.int64)
+    ph = np.zeros(64, np.int64)
+    lv = np.zeros(64)
+    sp = 0
+    fl[0], fn[0], ph[0] = lo, n, 0
+    while True:
+        m = fn[sp]
+        if m > 128:  # split: the left half first
+            n2 = m // 2
+            n2 -= n2 % 8
+            ph[sp] = 1
+            fl[sp + 1], fn[sp + 1], ph[sp + 1] = fl[sp], n2, 0
+            sp += 1
+            continue
+        ret = _pairwise_block(a, fl[sp], m)
+        sp -= 1
+        while sp >= 0:  # return ``ret`` to the parent frames
+            if ph[sp] == 1:  # left half done: the right half next
+                lv[sp] = ret
+                ph[sp] = 2
+                n2 = fn[sp] // 2
+                n2 -= n2 % 8
+                fl[sp + 1], fn[sp + 1], ph[sp + 1] = fl[sp] + n2, fn[sp] - n2, 0
+                sp += 1
+                break
+            ret = lv[sp] + ret  # both halves done
+            sp -= 1
+        if sp < 0:
+            return ret
+
+
+@numba.njit(**_JIT)
+def _gauge_rows(q, cx, cy, c, sn, hw, hh, k, floor, radial):
+    """The gauge (``radial``: the radial error) of every row of ``q``."""
+    out = np.empty(len(q))
+    for i in range(len(q)):
+        dx, dy = q[i, 0] - cx, q[i, 1] - cy
+        u = dx * c + dy * sn
+        v = dy * c - dx * sn
+        x = u / hw
+        y = v / hh
+        x2, y2 = x * x, y * y
+        g = math.sqrt(0.5 * (x2 + y2 + math.sqrt(max(x2 * x2 + y2 * y2 + k * x2 * y2, 0.0))))
+        if radial:
+            out[i] = math.sqrt(dx * dx + dy * dy) * (1.0 - 1.0 / max(g, floor))
+        else:
+            out[i] = g
+    return out
+
+
+def gauge(center, width: float, height: float, theta: float, s: float, q: np.ndarray) -> np.ndarray:
+    """:func:`perception.fit.gauge` of the squircle at the rows of ``q`` (C-contiguous floats)."""
+    return _gauge_rows(q, float(center[0]), float(center[1]), math.cos(theta), math.sin(theta), width / 2,
+                       height / 2, 2.0 - 4.0 * s * s, 0.0, False)
+
+
+def radial_error(center, width: float, height: float, theta: float, s: float, q: np.ndarray) -> np.ndarray:
+    """:func:`perception.fit.radial_error` of the squircle at the rows of ``q`` (C-contiguous floats)."""
+    return _gauge_rows(q, float(center[0]), float(center[1]), math.cos(theta), math.sin(theta), width / 2,
+                       height / 2, 2.0 - 4.0 * s * s, 1e-9, True)
+
+
+@numba.njit(**_JIT)
+def _rect_kernel(points, free, cx, cy, c, s, hw, hh, margin, want_error):
+    """``(_Rect.error(points) if want_error else 0, _Rect.free_inside(free, margin))``."""
+    n = len(points)
+    err = 0.0
+    if want_error:
+        dd = np.empty(n)
+        for i in range(n):
+            dx, dy = points[i, 0] - cx, points[i, 1] - cy
+            u = abs(dx * c + dy * s)
+            v = abs(dy * c - dx * s)
+            d = max(min(hw - u, hh - v), 0.0)
+            dd[i] = d * d
+        err = math.sqrt(_pairwise_sum(dd, 0, n) / n)
+    cnt = 0
+    wl, hl = hw - margin, hh - margin
+    for i in range(len(free)):
+        dx, dy = free[i, 0] - cx, free[i, 1] - cy
+        u = abs(dx * c + dy * s)
+        v = abs(dy * c - dx * s)
+        if u < wl and v < hl:
+            cnt += 1
+    return err, cnt
+
+
+_NO_FREE = np.zeros((0, 2))
+
+
+def rect_test(points: np.ndarray, free, cx: float, cy: float, w: float, h: float, t: float, margin: float,
+              want_error: bool = True) -> tuple[float, int]:
+    """RMS distance of ``points`` inside the rectangle to its boundary (``_Rect.error``; 0 when
+    not ``want_error``) and the free points deeper than ``margin`` inside it (``_Rect.free_inside``)."""
+    fr = _NO_FREE if free is None or not len(free) else _arr(free)
+    return _rect_kernel(_arr(points), fr, cx, cy, math.cos(t), math.sin(t), w / 2, h / 2, margin, want_error)
+
+
 def warm_up() -> None:
     """Compile (or load from numba's cache) every kernel of this module."""
     p = boundary_points((0.1, -0.2), 1.0, 0.5, 0.3, 0.9, 16)
     gauge_any_inside((0.0, 0.0), 1.0, 0.5, 0.3, 0.9, _arr(p))
     spacing(p)
     clear_of(p, _arr(0.5 * p), 0.01, 0.1)
+    gauge((0.0, 0.0), 1.0, 0.5, 0.3, 0.9, p)
+    radial_error((0.0, 0.0), 1.0, 0.5, 0.3, 0.9, p)
+    rect_test(p, None, 0.0, 0.0, 1.0, 0.5, 0.3, 0.04)
+    rect_test(p, p, 0.0, 0.0, 1.0, 0.5, 0.3, 0.04, False)

@@ -56,6 +56,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial import cKDTree
 
+from navigation._geom_kernel import _arr
 from navigation.geometry import Squircle
 
 from . import _fit_kernel, _shape_kernel
@@ -65,6 +66,7 @@ from .errors import ScanError
 __all__ = ["Fit", "gauge", "radial_error", "fit_squircle", "fit_cluster", "inflate", "rect_error"]
 
 _S_MAX = 0.99
+_NO_POINTS = np.zeros((0, 2))
 _MAX_POINTS = 160  # points used by one least-squares fit (evenly subsampled)
 _MAX_FREE = 200
 _LM_NFEV = 30
@@ -131,16 +133,16 @@ def _local(p: np.ndarray, q: np.ndarray):
 
 def gauge(sq: Squircle, q) -> np.ndarray:
     """Gauge ``g(q) = sqrt(beta(q) + 1)`` of ``sq`` at points ``q (N, 2)`` (``< 1`` inside)."""
-    q = np.asarray(q, dtype=float).reshape(-1, 2)
-    u, v = _local(_params(sq), q)
-    return _gauge_xy(u / (sq.width / 2), v / (sq.height / 2), sq.s)
+    q = _arr(np.asarray(q, dtype=float).reshape(-1, 2))
+    # compiled (:mod:`perception._shape_kernel`): ``_gauge_xy`` of ``_local`` row by row, bit-identical
+    return _shape_kernel.gauge(sq.center, sq.width, sq.height, sq.theta, sq.s, q)
 
 
 def radial_error(sq: Squircle, q) -> np.ndarray:
     """Signed radial error ``|q - c| (1 - 1/g(q))`` of points ``q (N, 2)`` (positive outside)."""
-    q = np.asarray(q, dtype=float).reshape(-1, 2)
-    g = np.maximum(gauge(sq, q), 1e-9)
-    return np.linalg.norm(q - np.asarray(sq.center), axis=1) * (1.0 - 1.0 / g)
+    q = _arr(np.asarray(q, dtype=float).reshape(-1, 2))
+    # compiled: ``np.linalg.norm(q - c, axis=1) * (1 - 1 / max(gauge, 1e-9))`` row by row, bit-identical
+    return _shape_kernel.radial_error(sq.center, sq.width, sq.height, sq.theta, sq.s, q)
 
 
 def _residuals(p: np.ndarray, q: np.ndarray, free: np.ndarray, w_free: float, ref=None, wq=None) -> np.ndarray:
@@ -243,16 +245,19 @@ class _Rect(NamedTuple):
 
     def error(self, points: np.ndarray) -> float:
         """RMS distance of ``points`` inside the rectangle to its boundary."""
-        u, v = self.local_abs(points)
-        d = np.maximum(np.minimum(self.w / 2 - u, self.h / 2 - v), 0.0)
-        return float(np.sqrt(np.mean(d * d)))
+        if not len(points):
+            return math.nan
+        # compiled (:func:`perception._shape_kernel.rect_test`): ``|u|, |v|`` of :meth:`local_abs`,
+        # ``d = max(min(w / 2 - |u|, h / 2 - |v|), 0)``, ``sqrt(mean(d * d))`` by numpy's pairwise sum
+        return float(_shape_kernel.rect_test(points, None, self.cx, self.cy, self.w, self.h, self.t, 0.0)[0])
 
     def free_inside(self, free, margin: float) -> int:
         """Free points deeper than ``margin`` inside the rectangle."""
         if free is None or not len(free):
             return 0
-        u, v = self.local_abs(free)
-        return int(np.count_nonzero((u < self.w / 2 - margin) & (v < self.h / 2 - margin)))
+        # compiled: ``|u| < w / 2 - margin and |v| < h / 2 - margin`` counted
+        return int(_shape_kernel.rect_test(_NO_POINTS, free, self.cx, self.cy, self.w, self.h, self.t, margin,
+                                           False)[1])
 
 
 def rect_error(points: np.ndarray) -> float:
@@ -268,7 +273,9 @@ def _rect_test(points: np.ndarray, free, margin: float) -> tuple[float, int, _Re
     r = _Rect.of(points) if len(points) else _Rect(0.0, 0.0, 0.0, 0.0, 0.0)
     if len(points) < 3:
         return 0.0, 0, r
-    return r.error(points), r.free_inside(free, margin), r
+    # ``r.error(points), r.free_inside(free, margin)`` in one compiled pass (bit-identical)
+    e, n_free = _shape_kernel.rect_test(points, free, r.cx, r.cy, r.w, r.h, r.t, margin)
+    return float(e), int(n_free), r
 
 
 def _piece_cost(points: np.ndarray, free, margin: float) -> float:

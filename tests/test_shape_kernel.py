@@ -157,3 +157,53 @@ def test_fit_kernel_warm_up_covers_shape_kernels():
     out = subprocess.run([sys.executable, "-c", SCRIPT], cwd=ROOT, capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stderr[-2000:]
     assert json.loads(out.stdout.strip().splitlines()[-1]) == {}
+
+
+def _local_ref(p, q):
+    c, sn = math.cos(p[4]), math.sin(p[4])
+    dx, dy = q[:, 0] - p[0], q[:, 1] - p[1]
+    return dx * c + dy * sn, dy * c - dx * sn
+
+
+def _gauge_ref(sq, q):
+    q = np.asarray(q, dtype=float).reshape(-1, 2)
+    u, v = _local_ref(F._params(sq), q)
+    return F._gauge_xy(u / (sq.width / 2), v / (sq.height / 2), sq.s)
+
+
+def _radial_ref(sq, q):
+    q = np.asarray(q, dtype=float).reshape(-1, 2)
+    g = np.maximum(_gauge_ref(sq, q), 1e-9)
+    return np.linalg.norm(q - np.asarray(sq.center), axis=1) * (1.0 - 1.0 / g)
+
+
+def _rect_ref(r, points, free, margin):
+    c, s = math.cos(r.t), math.sin(r.t)
+
+    def local_abs(q):
+        dx, dy = q[:, 0] - r.cx, q[:, 1] - r.cy
+        return np.abs(dx * c + dy * s), np.abs(dy * c - dx * s)
+
+    u, v = local_abs(points)
+    d = np.maximum(np.minimum(r.w / 2 - u, r.h / 2 - v), 0.0)
+    e = float(np.sqrt(np.mean(d * d)))
+    if free is None or not len(free):
+        return e, 0
+    u, v = local_abs(free)
+    return e, int(np.count_nonzero((u < r.w / 2 - margin) & (v < r.h / 2 - margin)))
+
+
+def test_gauge_radial_error_rect_identical():
+    for rng, sq in _random_squircles(1500, seed=2):
+        n = int(rng.integers(1, 400))
+        q = np.asarray(sq.center) + rng.normal(size=(n, 2)) * rng.uniform(0.01, 3)
+        assert np.array_equal(F.gauge(sq, q), _gauge_ref(sq, q))
+        assert np.array_equal(F.radial_error(sq, q), _radial_ref(sq, q))
+        assert np.array_equal(F.radial_error(sq, q[0]), _radial_ref(sq, q[0]))
+        if n >= 3:
+            free = None if n % 3 == 0 else q[::2] + rng.normal(size=q[::2].shape) * 0.05
+            margin = float(rng.uniform(0, 0.1))
+            e, nf, r = F._rect_test(q, free, margin)
+            assert (e, nf) == _rect_ref(r, q, free, margin)
+            assert F.rect_error(q) == _rect_ref(r, q, None, 0.0)[0]
+            assert r.free_inside(free, margin) == _rect_ref(r, q, free, margin)[1]
