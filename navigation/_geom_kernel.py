@@ -32,7 +32,7 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["point_xy", "point_xy_cs", "beta_rows", "boundary_jet", "signed_distance_rows", "ray_length_rows", "far_gap_rows", "gap_bound_rows", "wall_bound_rows"]
+__all__ = ["point_xy", "point_xy_cs", "beta_rows", "boundary_jet", "signed_distance_rows", "ray_length_rows", "far_gap_rows", "gap_bound_rows", "wall_bound_rows", "sample_table"]
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -138,6 +138,65 @@ def boundary_jet(P: np.ndarray, psi: np.ndarray) -> np.ndarray:
     if len(psi):
         _jet_kernel(P, psi, out)
     return out
+
+
+@numba.njit(**_JIT)
+def _sample_table_kernel(P, n, sub, psi, pts):
+    F = 8 * n + 1
+    step = 2.0 * math.pi / (F - 1)
+    fine = np.empty(F)
+    arc = np.empty(F)
+    arc[0] = 0.0
+    px, py = point_xy(P, 0, 0.0)
+    fine[0] = 0.0
+    for i in range(1, F):  # numpy.linspace(0, 2 pi, F): i * step, the last exactly 2 pi
+        fine[i] = i * step if i < F - 1 else 2.0 * math.pi
+        x, y = point_xy(P, 0, fine[i])
+        arc[i] = arc[i - 1] + math.sqrt((x - px) ** 2 + (y - py) ** 2)
+        px, py = x, y
+    total = arc[F - 1]
+    j = 0
+    for t in range(n):  # numpy.interp of numpy.linspace(0, total, n, endpoint=False)
+        target = t * (total / n)
+        while j + 1 < F - 1 and arc[j + 1] <= target:
+            j += 1
+        slope = (fine[j + 1] - fine[j]) / (arc[j + 1] - arc[j])
+        psi[t] = slope * (target - arc[j]) + fine[j] if arc[j + 1] != arc[j] else fine[j]
+        pts[t, 0], pts[t, 1] = point_xy(P, 0, psi[t])
+    # the largest arc between consecutive samples, on sub chords each (numpy's pairwise sum of
+    # the sub chord lengths when sub = 16: eight partial sums, then a tree)
+    best = -math.inf
+    seg = np.empty(sub)
+    for t in range(n):
+        a = psi[t]
+        b = psi[t + 1] if t + 1 < n else psi[0] + 2.0 * math.pi
+        qx, qy = point_xy(P, 0, a + (b - a) * 0.0)
+        for u in range(1, sub + 1):
+            frac = u * (1.0 / sub) if u < sub else 1.0
+            x, y = point_xy(P, 0, a + (b - a) * frac)
+            seg[u - 1] = math.sqrt((x - qx) ** 2 + (y - qy) ** 2)
+            qx, qy = x, y
+        if sub == 16:
+            r0, r1, r2, r3 = seg[0] + seg[8], seg[1] + seg[9], seg[2] + seg[10], seg[3] + seg[11]
+            r4, r5, r6, r7 = seg[4] + seg[12], seg[5] + seg[13], seg[6] + seg[14], seg[7] + seg[15]
+            s = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+        else:
+            s = 0.0
+            for u in range(sub):
+                s += seg[u]
+        best = max(best, s)
+    return best * (1.0 + 1e-6)
+
+
+def sample_table(row: np.ndarray, n: int, sub: int = 16) -> tuple[np.ndarray, np.ndarray, float]:
+    """``n`` arc-length-even boundary angles of the squircle ``row (7,)`` (arc length on ``8 n``
+    chords, inverted by linear interpolation), their points and the largest arc between
+    consecutive samples (measured on ``sub`` chords, times ``1 + 1e-6``):
+    :func:`navigation.geometry._sample_table`."""
+    P = _arr(row).reshape(1, 7)
+    psi, pts = np.empty(n), np.empty((n, 2))
+    arc = _sample_table_kernel(P, int(n), int(sub), psi, pts)
+    return psi, pts, float(arc)
 
 
 @numba.njit(**_JIT)

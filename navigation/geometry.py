@@ -602,24 +602,10 @@ def _sample_table(sq: Squircle, n: int) -> tuple[np.ndarray, np.ndarray, float]:
     """``n`` arc-length-even boundary angles of ``sq``, the points, and the largest arc between
     consecutive samples (memoised: perception and the executive build many tables over mostly
     the same squircles)."""
-    psi = sq.boundary_psi(n)
-    pts = sq.point_at(psi)
+    psi, pts, arc = _geom_kernel.sample_table(sq.packed(), n)  # compiled; as boundary_psi, point_at, _max_arc
     for a in (psi, pts):
         a.flags.writeable = False
-    return psi, pts, float(_max_arc([sq], psi[None])[0])
-
-
-def _max_arc(squircles, psi: np.ndarray, sub: int = 16) -> np.ndarray:
-    """Largest boundary arc length between consecutive samples ``psi (k, n)``, per squircle."""
-    out = np.empty(len(squircles))
-    frac = np.linspace(0.0, 1.0, sub + 1)
-    for i, sq in enumerate(squircles):
-        a = psi[i]
-        b = np.append(a[1:], a[0] + 2.0 * math.pi)
-        fine = sq.point_at(a[:, None] + (b - a)[:, None] * frac[None, :])
-        arc = np.linalg.norm(np.diff(fine, axis=1), axis=-1).sum(axis=1)
-        out[i] = arc.max() * (1.0 + 1e-6)
-    return out
+    return psi, pts, arc
 
 
 @functools.lru_cache(maxsize=8192)
