@@ -21,7 +21,9 @@ as the numpy code it mirrors, so its results are bit-identical (tested in
 * :func:`rect_test`: ``_Rect.error`` and ``_Rect.free_inside`` of :mod:`perception.fit` in one
   pass; the mean of the squared distances is numpy's pairwise summation
   (:func:`_pairwise_sum`, the algorithm of ``np.add.reduce`` on a contiguous array), so the
-  RMS is the same to the last bit.
+  RMS is the same to the last bit;
+* :func:`contain`: :func:`perception.fit._contain` (the maxima of ``need`` over the points
+  beyond each pair of faces are exact, so the loop takes the same steps).
 """
 
 from __future__ import annotations
@@ -34,7 +36,7 @@ import numpy as np
 from navigation._geom_kernel import _arr
 
 __all__ = ["boundary_points", "gauge_any_inside", "clear_of", "spacing", "gauge", "radial_error", "rect_test",
-           "warm_up"]
+           "contain", "warm_up"]
 
 _JIT = dict(cache=True, nogil=True)
 _FINE: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
@@ -323,6 +325,70 @@ def rect_test(points: np.ndarray, free, cx: float, cy: float, w: float, h: float
     return _rect_kernel(_arr(points), fr, cx, cy, math.cos(t), math.sin(t), w / 2, h / 2, margin, want_error)
 
 
+@numba.njit(**_JIT)
+def _need_into(need, ux, p, q, tol):
+    """``need = g / (1 + tol / max(hypot(u, v), 1e-9))`` of :func:`perception.fit._contain` (and
+    ``ux = |u / a| >= |v / b|``) at parameters ``p``."""
+    c, sn = math.cos(p[4]), math.sin(p[4])
+    a, b = math.exp(p[2]), math.exp(p[3])
+    k = 2.0 - 4.0 * p[5] * p[5]
+    for i in range(len(q)):
+        dx, dy = q[i, 0] - p[0], q[i, 1] - p[1]
+        u = dx * c + dy * sn
+        v = dy * c - dx * sn
+        x, y = u / a, v / b
+        x2, y2 = x * x, y * y
+        g = math.sqrt(0.5 * (x2 + y2 + math.sqrt(max(x2 * x2 + y2 * y2 + k * x2 * y2, 0.0))))
+        need[i] = g / (1.0 + tol / max(math.hypot(u, v), 1e-9))
+        ux[i] = abs(x) >= abs(y)
+
+
+@numba.njit(**_JIT)
+def _contain_kernel(p, q, tol):
+    p = p.copy()
+    n = len(q)
+    need = np.empty(n)
+    on_x = np.empty(n, np.bool_)
+    for _ in range(4):
+        _need_into(need, on_x, p, q, tol)
+        mx = -math.inf
+        my = -math.inf
+        anyx = False
+        anyy = False
+        for i in range(n):
+            if need[i] > 1.0:
+                if on_x[i]:
+                    anyx = True
+                    if need[i] > mx:
+                        mx = need[i]
+                else:
+                    anyy = True
+                    if need[i] > my:
+                        my = need[i]
+        if not (anyx or anyy):
+            return p
+        if anyx:
+            p[2] += math.log(mx) + 1e-9
+        if anyy:
+            p[3] += math.log(my) + 1e-9
+    _need_into(need, on_x, p, q, tol)
+    f = 1.0
+    if n:
+        f = need[0]
+        for i in range(1, n):
+            if need[i] > f:
+                f = need[i]
+    if f > 1.0:
+        p[2] += math.log(f) + 1e-9
+        p[3] += math.log(f) + 1e-9
+    return p
+
+
+def contain(p: np.ndarray, q: np.ndarray, tol: float) -> np.ndarray:
+    """:func:`perception.fit._contain` (the same steps, bit-identical)."""
+    return _contain_kernel(_arr(p), _arr(q), float(tol))
+
+
 def warm_up() -> None:
     """Compile (or load from numba's cache) every kernel of this module."""
     p = boundary_points((0.1, -0.2), 1.0, 0.5, 0.3, 0.9, 16)
@@ -333,3 +399,4 @@ def warm_up() -> None:
     radial_error((0.0, 0.0), 1.0, 0.5, 0.3, 0.9, p)
     rect_test(p, None, 0.0, 0.0, 1.0, 0.5, 0.3, 0.04)
     rect_test(p, p, 0.0, 0.0, 1.0, 0.5, 0.3, 0.04, False)
+    contain(np.array([0.0, 0.0, -0.5, -1.0, 0.3, 0.9]), p, 0.01)

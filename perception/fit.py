@@ -103,7 +103,7 @@ def _p95(a: np.ndarray) -> float:
     """``np.percentile(a, 95)`` (linear interpolation, the same value) by one ``np.partition``:
     ``np.percentile`` costs about 0.1 ms per call of its own, and a refit takes a few dozen."""
     n = len(a)
-    if n < 2 or not np.all(np.isfinite(a)):
+    if n < 2 or not np.isfinite(a).all():
         return float(np.percentile(a, 95))
     v = (n - 1) * 0.95
     lo = math.floor(v)
@@ -424,7 +424,7 @@ def _solve(seed: np.ndarray, q: np.ndarray, free: np.ndarray, cfg: PerceptionCon
             x, fun = _lm(x0, lo, hi, scale, (q, free, 1.0, ref, wq))
     except (ValueError, np.linalg.LinAlgError):
         return None
-    if not np.all(np.isfinite(x)):
+    if not np.isfinite(x).all():
         return None
     rp = fun[: len(q)] if wq is None else fun[: len(q)] / wq  # radial errors (the reported RMS)
     return x, float(np.sqrt(np.mean(rp * rp))), float(np.sum(fun[len(q):-2] ** 2)), _p95(np.abs(rp))
@@ -476,27 +476,7 @@ def _contain(p: np.ndarray, q: np.ndarray, tol: float) -> np.ndarray:
     """Grow the extents until every point is within ``tol`` of the inside: each axis by what the
     points beyond its faces need (an elongated shape is not inflated along its length for a
     point beyond its side), then, to be sure, uniformly."""
-    p = p.copy()
-    for _ in range(4):
-        u, v = _local(p, q)
-        a, b = math.exp(p[2]), math.exp(p[3])
-        g = _gauge_xy(u / a, v / b, p[5])
-        need = g / (1.0 + tol / np.maximum(np.hypot(u, v), 1e-9))
-        out = need > 1.0
-        if not np.any(out):
-            return p
-        on_x = np.abs(u / a) >= np.abs(v / b)
-        for k, sel in ((2, out & on_x), (3, out & ~on_x)):
-            if np.any(sel):
-                p[k] += math.log(float(need[sel].max())) + 1e-9
-    u, v = _local(p, q)
-    g = _gauge_xy(u / math.exp(p[2]), v / math.exp(p[3]), p[5])
-    need = g / (1.0 + tol / np.maximum(np.hypot(u, v), 1e-9))
-    f = float(need.max()) if len(need) else 1.0
-    if f > 1.0:
-        p[2] += math.log(f) + 1e-9
-        p[3] += math.log(f) + 1e-9
-    return p
+    return _shape_kernel.contain(p, q, tol)  # compiled, the same steps (bit-identical)
 
 
 def _to_squircle(p: np.ndarray) -> Squircle:
@@ -593,7 +573,7 @@ def _check(a, name: str) -> np.ndarray:
         if arr.size == 0:
             return np.zeros((0, 2))
         raise ScanError(f"{name}: expected shape (N, 2), got {arr.shape}", name)
-    if not np.all(np.isfinite(arr)):
+    if not np.isfinite(arr).all():
         raise ScanError(f"{name}: contains non-finite values", name)
     return arr
 
@@ -644,7 +624,7 @@ def _merge_parts(points: np.ndarray, parts: list[np.ndarray], cfg: PerceptionCon
         for a in range(len(parts)):
             for b in range(a + 1, len(parts)):
                 d, _ = trees[a].query(points[parts[b]], distance_upper_bound=cfg.link)
-                if not np.any(np.isfinite(d)):
+                if not np.isfinite(d).any():
                     continue
                 e, n_free, _ = _rect_test(points[np.concatenate((parts[a], parts[b]))], free, cfg.free_cell)
                 if e <= cfg.split_tol and n_free == 0 and (best is None or e < best[0]):
@@ -713,9 +693,9 @@ def _segments(points: np.ndarray, cfg: PerceptionConfig) -> list[np.ndarray]:
     g = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
     _, lab = connected_components(g, directed=False)
     lab = np.where(straight, lab, -1)
-    sizes = np.bincount(lab[lab >= 0], minlength=n) if np.any(lab >= 0) else np.zeros(n, int)
+    sizes = np.bincount(lab[lab >= 0], minlength=n) if (lab >= 0).any() else np.zeros(n, int)
     big = (lab >= 0) & (sizes[np.maximum(lab, 0)] >= max(cfg.min_piece, 3))
-    if not np.any(big):
+    if not big.any():
         return [np.arange(n)]
     # corner points and tiny runs join the run of their nearest point in a large run
     src = np.nonzero(big)[0]
@@ -924,7 +904,7 @@ def _split_memo(q: np.ndarray, run: np.ndarray, cfg: PerceptionConfig, fr, cache
     n_free = 0
     if fr is not None and len(fr):
         lo, hi = sub.min(axis=0) - cfg.free_cell, sub.max(axis=0) + cfg.free_cell
-        n_free = int(np.count_nonzero(np.all((fr >= lo) & (fr <= hi), axis=1)))
+        n_free = int(np.count_nonzero(((fr >= lo) & (fr <= hi)).all(axis=1)))
     # the cells in the run's order (cached cuts are positions within the run)
     key = ("cuts", force, n_free, len(run), hash(np.floor(sub / cfg.voxel).astype(np.int64).tobytes()))
     used.add(key)
@@ -1026,7 +1006,7 @@ def _fit_piece(q, vw, free, idx, cfg: PerceptionConfig, init=None, cache=None) -
     fr = None
     if free is not None and len(free):
         lo, hi = q[idx].min(axis=0) - 0.3, q[idx].max(axis=0) + 0.3
-        fr = free[np.all((free >= lo) & (free <= hi), axis=1)]
+        fr = free[((free >= lo) & (free <= hi)).all(axis=1)]
     key = None
     if cache is not None:
         key = _cell_key(q[idx], cfg)

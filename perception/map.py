@@ -711,7 +711,7 @@ class ObstacleMap:
         best = None
         for e in self._est.values():
             sq = e.squircle
-            if np.any(np.hypot(q[:, 0] - sq.center[0], q[:, 1] - sq.center[1]) <= sq.bounding_radius + 0.05):
+            if (np.hypot(q[:, 0] - sq.center[0], q[:, 1] - sq.center[1]) <= sq.bounding_radius + 0.05).any():
                 share = float(np.mean(radial_error(sq, q) <= self.config.refit_tol))
                 if share >= 0.5 and (best is None or share > best[0]):
                     best = (share, self._resolve(e.cluster))
@@ -741,7 +741,7 @@ class ObstacleMap:
             sq = e.squircle
             rb = sq.bounding_radius
             c = np.asarray(sq.center)
-            if np.any(c + rb < lo) or np.any(c - rb > hi) or e.cluster in out:
+            if (c + rb < lo).any() or (c - rb > hi).any() or e.cluster in out:
                 continue
             near = free[np.hypot(free[:, 0] - c[0], free[:, 1] - c[1]) < rb]
             if len(near) and float(radial_error(sq, near).min()) < -cfg.free_tol:
@@ -771,7 +771,7 @@ class ObstacleMap:
         ws = self.workspace
         e_ws = radial_error(ws, q)
         near = e_ws > -cfg.ws_touch
-        if np.any(near):
+        if near.any():
             # virtual returns just outside, along the boundary's outward normal
             qn = q[near]
             nrm = ws.gradient(qn)
@@ -945,7 +945,7 @@ class ObstacleMap:
             c = np.asarray(X.center)
             u = pts - c
             pts = pts + u / np.maximum(np.linalg.norm(u, axis=1, keepdims=True), 1e-12) * pad
-            if np.any(gauge(Y, pts) <= 1.0):
+            if (gauge(Y, pts) <= 1.0).any():
                 return True
         return False
 
@@ -979,7 +979,7 @@ class ObstacleMap:
             return True
         pts = _samples(sq)
         g = gauge(ws, pts)
-        if not bool(np.all(g < 1.0)):
+        if not bool((g < 1.0).all()):
             return False
         sp = _spacing(pts)
         if float((1.0 - g).min()) * rin - sp > need:
@@ -1029,7 +1029,7 @@ class ObstacleMap:
         arc = 4.0 * 2.0 * (sq.width + sq.height) / 256
         if top[1] - Y <= max(deep, arc / 2) or y0 >= Y:
             return False
-        if not bool(np.all(gauge(ws, world(np.array([x0, x1]), np.array([y0, y0]))) < 1.0)):
+        if not bool((gauge(ws, world(np.array([x0, x1]), np.array([y0, y0]))) < 1.0).all()):
             return False
 
         def bisect(inside, outside, g):
@@ -1051,7 +1051,7 @@ class ObstacleMap:
         if y_lo - bot[1] <= arc / 2:
             return False
         grad = ws.gradient(world(psi[:, 0], psi[:, 1])) @ M.T
-        if not bool(np.all(grad[:, 1] > 0)):
+        if not bool((grad[:, 1] > 0).all()):
             return False
         kappa = float(np.max(np.abs(grad[:, 0]) / grad[:, 1]))  # |psi'| at x0 and x1
         # the legs' ends: boundary points of ``sq`` at heights y_lo and Y, left and right of the
@@ -1059,12 +1059,12 @@ class ObstacleMap:
         hs = np.array([y_lo, Y, y_lo, Y])
         t = (hs - bot[1]) / (top[1] - bot[1])
         mid = bot + t[:, None] * (top - bot)
-        if not bool(np.all(ge(mid) < 1.0)):
+        if not bool((ge(mid) < 1.0).all()):
             return False
         far = np.stack((np.array([x0 - 1e-3, x0 - 1e-3, x1 + 1e-3, x1 + 1e-3]), hs), axis=1)
         _, ends = bisect(mid, far, ge)
         n = sq.gradient(world(ends[:, 0], ends[:, 1])) @ M.T
-        if not bool(np.all(np.abs(n[:, 0]) > 1e-12)):
+        if not bool((np.abs(n[:, 0]) > 1e-12).all()):
             return False
         slope = float(np.max(np.abs(n[:, 1] / n[:, 0])))  # |dx/dy| at the ends of the legs
         if kappa * slope > 0.5:

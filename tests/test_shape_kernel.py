@@ -149,7 +149,8 @@ for k in range(40):
     sim.step((0.3, 0.4))
     omap.update_scan(sim.scan_message(), sim.pose_message())
 after = compiled_signatures((shape_kernel,))
-print(json.dumps({k: [before.get(k), v] for k, v in after.items() if before.get(k) != v}))
+print(json.dumps({k: [before.get(k), v] for k, v in after.items()
+                  if k.startswith("perception.") and before.get(k) != v}))
 """
 
 
@@ -207,3 +208,36 @@ def test_gauge_radial_error_rect_identical():
             assert (e, nf) == _rect_ref(r, q, free, margin)
             assert F.rect_error(q) == _rect_ref(r, q, None, 0.0)[0]
             assert r.free_inside(free, margin) == _rect_ref(r, q, free, margin)[1]
+
+
+def _contain_ref(p, q, tol):
+    p = p.copy()
+    for _ in range(4):
+        u, v = _local_ref(p, q)
+        a, b = math.exp(p[2]), math.exp(p[3])
+        g = F._gauge_xy(u / a, v / b, p[5])
+        need = g / (1.0 + tol / np.maximum(np.hypot(u, v), 1e-9))
+        out = need > 1.0
+        if not np.any(out):
+            return p
+        on_x = np.abs(u / a) >= np.abs(v / b)
+        for k, sel in ((2, out & on_x), (3, out & ~on_x)):
+            if np.any(sel):
+                p[k] += math.log(float(need[sel].max())) + 1e-9
+    u, v = _local_ref(p, q)
+    g = F._gauge_xy(u / math.exp(p[2]), v / math.exp(p[3]), p[5])
+    need = g / (1.0 + tol / np.maximum(np.hypot(u, v), 1e-9))
+    f = float(need.max()) if len(need) else 1.0
+    if f > 1.0:
+        p[2] += math.log(f) + 1e-9
+        p[3] += math.log(f) + 1e-9
+    return p
+
+
+def test_contain_identical():
+    for rng, sq in _random_squircles(2000, seed=4):
+        p = F._params(sq)
+        n = int(rng.integers(1, 300))
+        q = np.asarray(sq.center) + rng.normal(size=(n, 2)) * rng.uniform(0.01, 3)
+        tol = float(rng.choice([0.0, 0.01, rng.uniform(0, 0.1)]))
+        assert np.array_equal(F._contain(p, q, tol), _contain_ref(p, q, tol))
