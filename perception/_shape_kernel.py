@@ -23,7 +23,10 @@ as the numpy code it mirrors, so its results are bit-identical (tested in
   (:func:`_pairwise_sum`, the algorithm of ``np.add.reduce`` on a contiguous array), so the
   RMS is the same to the last bit;
 * :func:`contain`: :func:`perception.fit._contain` (the maxima of ``need`` over the points
-  beyond each pair of faces are exact, so the loop takes the same steps).
+  beyond each pair of faces are exact, so the loop takes the same steps);
+* :func:`component_labels`: ``scipy.sparse.csgraph.connected_components`` of an edge list by
+  union-find, the same labels (scipy's ``coo_matrix`` and graph checks cost more than the
+  search on the small graphs of a cluster).
 """
 
 from __future__ import annotations
@@ -36,7 +39,7 @@ import numpy as np
 from navigation._geom_kernel import _arr
 
 __all__ = ["boundary_points", "gauge_any_inside", "clear_of", "spacing", "gauge", "radial_error", "rect_test",
-           "contain", "warm_up"]
+           "contain", "component_labels", "warm_up"]
 
 _JIT = dict(cache=True, nogil=True)
 _FINE: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
@@ -389,6 +392,46 @@ def contain(p: np.ndarray, q: np.ndarray, tol: float) -> np.ndarray:
     return _contain_kernel(_arr(p), _arr(q), float(tol))
 
 
+@numba.njit(**_JIT)
+def _find(parent, v):
+    r = v
+    while parent[r] != r:
+        r = parent[r]
+    while parent[v] != r:  # path compression
+        parent[v], v = r, parent[v]
+    return r
+
+
+@numba.njit(**_JIT)
+def _component_labels(n, pairs):
+    parent = np.arange(n)
+    for k in range(len(pairs)):
+        ra, rb = _find(parent, pairs[k, 0]), _find(parent, pairs[k, 1])
+        if ra != rb:
+            if ra < rb:
+                parent[rb] = ra
+            else:
+                parent[ra] = rb
+    lab = np.empty(n, np.int64)
+    root_lab = np.full(n, -1, np.int64)
+    cnt = 0
+    for v in range(n):
+        r = _find(parent, v)
+        if root_lab[r] < 0:
+            root_lab[r] = cnt
+            cnt += 1
+        lab[v] = root_lab[r]
+    return cnt, lab
+
+
+def component_labels(n: int, pairs: np.ndarray) -> tuple[int, np.ndarray]:
+    """``scipy.sparse.csgraph.connected_components`` (undirected) of the graph on ``n`` nodes
+    with the edges ``pairs (E, 2)``: the number of components and every node's label, labels
+    numbered in the order of their smallest node (scipy's order: it labels the component of
+    each node not yet labelled, in increasing node order)."""
+    return _component_labels(int(n), _arr(np.asarray(pairs).reshape(-1, 2), np.int64))
+
+
 def warm_up() -> None:
     """Compile (or load from numba's cache) every kernel of this module."""
     p = boundary_points((0.1, -0.2), 1.0, 0.5, 0.3, 0.9, 16)
@@ -400,3 +443,5 @@ def warm_up() -> None:
     rect_test(p, None, 0.0, 0.0, 1.0, 0.5, 0.3, 0.04)
     rect_test(p, p, 0.0, 0.0, 1.0, 0.5, 0.3, 0.04, False)
     contain(np.array([0.0, 0.0, -0.5, -1.0, 0.3, 0.9]), p, 0.01)
+    component_labels(4, np.array([[0, 2], [1, 3]]))
+    component_labels(3, np.zeros((0, 2), np.int64))

@@ -639,16 +639,13 @@ def _merge_parts(points: np.ndarray, parts: list[np.ndarray], cfg: PerceptionCon
 
 def _components(points: np.ndarray, link: float) -> list[np.ndarray]:
     """Index sets of the connected components of ``points`` (pairs closer than ``link``)."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
     from scipy.spatial import cKDTree
 
     n = len(points)
     pairs = cKDTree(points).query_pairs(link, output_type="ndarray")
     if not len(pairs):
         return [np.array([i]) for i in range(n)]
-    g = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
-    _, lab = connected_components(g, directed=False)
+    _, lab = _shape_kernel.component_labels(n, pairs)  # = connected_components of the pairs (same labels)
     order = np.argsort(lab, kind="stable")
     return np.split(order, np.cumsum(np.bincount(lab))[:-1])
 
@@ -660,8 +657,6 @@ def _segments(points: np.ndarray, cfg: PerceptionConfig) -> list[np.ndarray]:
     nearest straight neighbour; runs of fewer than ``min_piece`` points join their nearest run.
     Faces of one rectangle share the direction modulo 90 degrees; walls meeting at a corner
     under another angle, and any concave corner, separate runs."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
     from scipy.spatial import cKDTree
 
     n = len(points)
@@ -690,8 +685,7 @@ def _segments(points: np.ndarray, cfg: PerceptionConfig) -> list[np.ndarray]:
         dpsi = np.minimum(dpsi, math.pi / 2 - dpsi)
         keep = straight[a] & straight[b] & (dpsi < math.radians(12.0 + 300.0 * cfg.noise_std))
         pairs = pairs[keep]
-    g = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
-    _, lab = connected_components(g, directed=False)
+    _, lab = _shape_kernel.component_labels(n, pairs)  # = connected_components of the pairs (same labels)
     lab = np.where(straight, lab, -1)
     sizes = np.bincount(lab[lab >= 0], minlength=n) if (lab >= 0).any() else np.zeros(n, int)
     big = (lab >= 0) & (sizes[np.maximum(lab, 0)] >= max(cfg.min_piece, 3))

@@ -241,3 +241,19 @@ def test_contain_identical():
         q = np.asarray(sq.center) + rng.normal(size=(n, 2)) * rng.uniform(0.01, 3)
         tol = float(rng.choice([0.0, 0.01, rng.uniform(0, 0.1)]))
         assert np.array_equal(F._contain(p, q, tol), _contain_ref(p, q, tol))
+
+
+def test_component_labels_are_scipys():
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    rng = np.random.default_rng(5)
+    for _ in range(2000):
+        n = int(rng.integers(1, 80))
+        m = int(rng.integers(0, 2 * n))
+        pairs = np.sort(rng.integers(0, n, size=(m, 2)), axis=1)
+        pairs = pairs[pairs[:, 0] < pairs[:, 1]]
+        g = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+        k, lab = connected_components(g, directed=False)
+        k2, lab2 = K.component_labels(n, pairs)
+        assert k == k2 and np.array_equal(lab, lab2)
