@@ -26,7 +26,8 @@ as the numpy code it mirrors, so its results are bit-identical (tested in
   beyond each pair of faces are exact, so the loop takes the same steps);
 * :func:`component_labels`: ``scipy.sparse.csgraph.connected_components`` of an edge list by
   union-find, the same labels (scipy's ``coo_matrix`` and graph checks cost more than the
-  search on the small graphs of a cluster).
+  search on the small graphs of a cluster);
+* :func:`distance_weights`: :func:`perception.fit._distance_weights`.
 """
 
 from __future__ import annotations
@@ -39,7 +40,8 @@ import numpy as np
 from navigation._geom_kernel import _arr
 
 __all__ = ["boundary_points", "gauge_any_inside", "clear_of", "spacing", "gauge", "radial_error", "rect_test",
-           "contain", "component_labels", "warm_up"]
+           "contain", "component_labels",
+           "distance_weights", "warm_up"]
 
 _JIT = dict(cache=True, nogil=True)
 _FINE: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
@@ -432,6 +434,39 @@ def component_labels(n: int, pairs: np.ndarray) -> tuple[int, np.ndarray]:
     return _component_labels(int(n), _arr(np.asarray(pairs).reshape(-1, 2), np.int64))
 
 
+@numba.njit(**_JIT)
+def _distance_weights_kernel(p, q):
+    c, sn = math.cos(p[4]), math.sin(p[4])
+    a, b, s = math.exp(p[2]), math.exp(p[3]), p[5]
+    k = 2.0 - 4.0 * s * s
+    out = np.empty(len(q))
+    for i in range(len(q)):
+        dx, dy = q[i, 0] - p[0], q[i, 1] - p[1]
+        u = dx * c + dy * sn
+        v = dy * c - dx * sn
+        x, y = u / a, v / b
+        x2, y2 = x * x, y * y
+        R = math.sqrt(max(x2 * x2 + y2 * y2 + k * x2 * y2, 1e-300))
+        B = 0.5 * (x2 + y2 + R)
+        g = math.sqrt(max(B, 1e-300))
+        dBx = x + (2.0 * x2 * x + k * x * y2) / (2.0 * R)
+        dBy = y + (2.0 * y2 * y + k * x2 * y) / (2.0 * R)
+        gx, gy = dBx / (2.0 * g * a), dBy / (2.0 * g * b)
+        d0 = gx * -c + gy * sn
+        d1 = gx * -sn + gy * -c
+        grad = math.hypot(d0, d1)
+        rho = math.hypot(u, v)
+        w = g / max(rho * grad, 1e-12)
+        out[i] = min(max(w, 0.05), 1.0)
+    return out
+
+
+def distance_weights(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """:func:`perception.fit._distance_weights` (the gauge and its centre derivatives of
+    ``fit._gauge_jac``, row by row: bit-identical)."""
+    return _distance_weights_kernel(_arr(p), _arr(q))
+
+
 def warm_up() -> None:
     """Compile (or load from numba's cache) every kernel of this module."""
     p = boundary_points((0.1, -0.2), 1.0, 0.5, 0.3, 0.9, 16)
@@ -445,3 +480,4 @@ def warm_up() -> None:
     contain(np.array([0.0, 0.0, -0.5, -1.0, 0.3, 0.9]), p, 0.01)
     component_labels(4, np.array([[0, 2], [1, 3]]))
     component_labels(3, np.zeros((0, 2), np.int64))
+    distance_weights(np.array([0.0, 0.0, -0.5, -1.0, 0.3, 0.9]), p)

@@ -257,3 +257,20 @@ def test_component_labels_are_scipys():
         k, lab = connected_components(g, directed=False)
         k2, lab2 = K.component_labels(n, pairs)
         assert k == k2 and np.array_equal(lab, lab2)
+
+
+def _distance_weights_ref(p, q):
+    u, v = _local_ref(p, q)
+    g, dg, rho, _ = F._gauge_jac(u, v, p)
+    grad = np.hypot(dg[:, 0], dg[:, 1])
+    return np.clip(g / np.maximum(rho * grad, 1e-12), 0.05, 1.0)
+
+
+def test_distance_weights_identical():
+    for rng, sq in _random_squircles(2000, seed=6):
+        p = F._params(sq)
+        n = int(rng.integers(1, 200))
+        q = np.asarray(sq.center) + rng.normal(size=(n, 2)) * rng.uniform(0.01, 3)
+        if n > 3:
+            q[0] = sq.center  # at the centre (rho = 0)
+        assert np.array_equal(F._distance_weights(p, q), _distance_weights_ref(p, q))
