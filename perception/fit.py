@@ -116,6 +116,20 @@ def _p95(a: np.ndarray) -> float:
     return x1 - d * (1 - t) if t >= 0.5 else x0 + d * t
 
 
+def _median(a: np.ndarray) -> float:
+    """``float(np.median(a))`` of a non-empty 1-D array (the middle value, or the mean of the two
+    middle values ``(x0 + x1) / 2``, the same arithmetic) by one ``np.partition``; NaNs go to
+    ``np.median``."""
+    n = len(a)
+    if n == 0 or not np.isfinite(a).all():
+        return float(np.median(a))
+    h = n // 2
+    if n % 2:
+        return float(np.partition(a, h)[h])
+    part = np.partition(a, (h - 1, h))
+    return (float(part[h - 1]) + float(part[h])) / 2
+
+
 def _params(sq: Squircle) -> np.ndarray:
     return np.array([sq.center[0], sq.center[1], math.log(sq.width / 2), math.log(sq.height / 2), sq.theta, sq.s])
 
@@ -339,11 +353,12 @@ def _warm_seed(init, q: np.ndarray, cfg: PerceptionConfig) -> np.ndarray | None:
     if not init:
         return None
     qq = _subsample(q, 32)
+    m = qq.mean(axis=0)  # (once, not per previous estimate)
     best = None
     for sq in init:
-        if math.dist(sq.center, qq.mean(axis=0)) > sq.bounding_radius + cfg.min_unseen:
+        if math.dist(sq.center, m) > sq.bounding_radius + cfg.min_unseen:
             continue
-        e = float(np.median(np.abs(radial_error(sq, qq))))
+        e = _median(np.abs(radial_error(sq, qq)))
         if e <= cfg.min_unseen and (best is None or e < best[0]):
             best = (e, sq)
     return None if best is None else _params(best[1])

@@ -274,3 +274,13 @@ def test_distance_weights_identical():
         if n > 3:
             q[0] = sq.center  # at the centre (rho = 0)
         assert np.array_equal(F._distance_weights(p, q), _distance_weights_ref(p, q))
+
+
+def test_median_is_numpys():
+    rng = np.random.default_rng(7)
+    for _ in range(3000):
+        n = int(rng.integers(1, 70))
+        a = np.abs(rng.normal(size=n)) * rng.uniform(1e-4, 1)
+        if n > 4 and rng.random() < 0.3:
+            a[: n // 2] = a[0]  # ties
+        assert F._median(a) == float(np.median(a))
