@@ -55,6 +55,8 @@ import numpy as np
 
 from navigation._geom_kernel import _arr
 
+from ._shape_kernel import local_xy
+
 __all__ = ["lm", "residuals", "jacobian"]
 
 _JIT = dict(cache=True, nogil=True)
@@ -69,10 +71,7 @@ def _residuals_into(p, Q, nq, nf, w_free, ref, has_ref, wq, has_wq, out, g):
     k = 2.0 - 4.0 * p[5] * p[5]
     N = nq + nf
     for i in range(N):
-        dx, dy = Q[i, 0] - p[0], Q[i, 1] - p[1]
-        u = dx * c + dy * sn
-        v = dy * c - dx * sn
-        x, y = u / a, v / b
+        dx, dy, u, v, x, y = local_xy(Q[i, 0], Q[i, 1], p[0], p[1], c, sn, a, b)
         x2, y2 = x * x, y * y
         T = x2 * x2 + y2 * y2 + k * x2 * y2
         gi = math.sqrt(0.5 * (x2 + y2 + math.sqrt(max(T, 0.0))))
@@ -103,10 +102,7 @@ def _jacobian_into(p, Q, nq, nf, w_free, ref, has_ref, wq, has_wq, g, J, rows):
     for i in range(N):
         if i >= nq and not g[i] < 1.0:
             continue
-        dx, dy = Q[i, 0] - p[0], Q[i, 1] - p[1]
-        u = dx * c + dy * sn
-        v = dy * c - dx * sn
-        x, y = u / a, v / b
+        dx, dy, u, v, x, y = local_xy(Q[i, 0], Q[i, 1], p[0], p[1], c, sn, a, b)
         x2, y2 = x * x, y * y
         T = x2 * x2 + y2 * y2 + k * x2 * y2
         rho = math.hypot(u, v)

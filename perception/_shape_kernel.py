@@ -44,6 +44,23 @@ __all__ = ["boundary_points", "gauge_any_inside", "clear_of", "spacing", "gauge"
            "distance_weights", "warm_up"]
 
 _JIT = dict(cache=True, nogil=True)
+
+
+@numba.njit(inline="always", **_JIT)
+def local_xy(qx, qy, cx, cy, c, sn, a, b):
+    """The offset ``(dx, dy)`` of ``(qx, qy)`` from the centre ``(cx, cy)``, its coordinates
+    ``(u, v)`` in the frame rotated by ``(c, sn) = (cos, sin)``, and the normalised ``(u / a,
+    v / b)``."""
+    dx, dy = qx - cx, qy - cy
+    u = dx * c + dy * sn
+    v = dy * c - dx * sn
+    return dx, dy, u, v, u / a, v / b
+
+
+@numba.njit(inline="always", **_JIT)
+def gauge_xy(x2, y2, k):
+    """The gauge ``sqrt(beta + 1)`` at squared normalised coordinates ``x2, y2`` (``k = 2 - 4 s^2``)."""
+    return math.sqrt(0.5 * (x2 + y2 + math.sqrt(max(x2 * x2 + y2 * y2 + k * x2 * y2, 0.0))))
 _FINE: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
 
 
@@ -140,13 +157,9 @@ def boundary_points(center, width: float, height: float, theta: float, s: float,
 @numba.njit(**_JIT)
 def _any_inside_kernel(pts, cx, cy, c, sn, hw, hh, k):
     for i in range(len(pts)):
-        dx, dy = pts[i, 0] - cx, pts[i, 1] - cy
-        u = dx * c + dy * sn
-        v = dy * c - dx * sn
-        x = u / hw
-        y = v / hh
+        dx, dy, u, v, x, y = local_xy(pts[i, 0], pts[i, 1], cx, cy, c, sn, hw, hh)
         x2, y2 = x * x, y * y
-        g = math.sqrt(0.5 * (x2 + y2 + math.sqrt(max(x2 * x2 + y2 * y2 + k * x2 * y2, 0.0))))
+        g = gauge_xy(x2, y2, k)
         if g <= 1.0:
             return True
     return False
@@ -268,13 +281,9 @@ def _gauge_rows(q, cx, cy, c, sn, hw, hh, k, floor, radial):
     """The gauge (``radial``: the radial error) of every row of ``q``."""
     out = np.empty(len(q))
     for i in range(len(q)):
-        dx, dy = q[i, 0] - cx, q[i, 1] - cy
-        u = dx * c + dy * sn
-        v = dy * c - dx * sn
-        x = u / hw
-        y = v / hh
+        dx, dy, u, v, x, y = local_xy(q[i, 0], q[i, 1], cx, cy, c, sn, hw, hh)
         x2, y2 = x * x, y * y
-        g = math.sqrt(0.5 * (x2 + y2 + math.sqrt(max(x2 * x2 + y2 * y2 + k * x2 * y2, 0.0))))
+        g = gauge_xy(x2, y2, k)
         if radial:
             out[i] = math.sqrt(dx * dx + dy * dy) * (1.0 - 1.0 / max(g, floor))
         else:
@@ -338,12 +347,9 @@ def _need_into(need, ux, p, q, tol):
     a, b = math.exp(p[2]), math.exp(p[3])
     k = 2.0 - 4.0 * p[5] * p[5]
     for i in range(len(q)):
-        dx, dy = q[i, 0] - p[0], q[i, 1] - p[1]
-        u = dx * c + dy * sn
-        v = dy * c - dx * sn
-        x, y = u / a, v / b
+        dx, dy, u, v, x, y = local_xy(q[i, 0], q[i, 1], p[0], p[1], c, sn, a, b)
         x2, y2 = x * x, y * y
-        g = math.sqrt(0.5 * (x2 + y2 + math.sqrt(max(x2 * x2 + y2 * y2 + k * x2 * y2, 0.0))))
+        g = gauge_xy(x2, y2, k)
         need[i] = g / (1.0 + tol / max(math.hypot(u, v), 1e-9))
         ux[i] = abs(x) >= abs(y)
 
@@ -441,10 +447,7 @@ def _distance_weights_kernel(p, q):
     k = 2.0 - 4.0 * s * s
     out = np.empty(len(q))
     for i in range(len(q)):
-        dx, dy = q[i, 0] - p[0], q[i, 1] - p[1]
-        u = dx * c + dy * sn
-        v = dy * c - dx * sn
-        x, y = u / a, v / b
+        dx, dy, u, v, x, y = local_xy(q[i, 0], q[i, 1], p[0], p[1], c, sn, a, b)
         x2, y2 = x * x, y * y
         R = math.sqrt(max(x2 * x2 + y2 * y2 + k * x2 * y2, 1e-300))
         B = 0.5 * (x2 + y2 + R)

@@ -1,12 +1,8 @@
 """The refit's compiled geometry (perception._shape_kernel) and the plain-Python pieces of
 perception.fit that replaced numpy / networkx / scipy calls give bit-identical results."""
 
-import json
 import math
 import random
-import subprocess
-import sys
-from pathlib import Path
 
 import networkx as nx
 import numpy as np
@@ -16,8 +12,6 @@ from navigation._geom_kernel import _arr
 from navigation.geometry import Squircle
 from perception import _shape_kernel as K
 from perception import fit as F
-
-ROOT = Path(__file__).resolve().parent.parent
 
 
 def _random_squircles(n, seed=0):
@@ -128,36 +122,6 @@ def test_cell_key_equality_is_that_of_unique_cells():
         same = np.array_equal(np.unique(np.floor(a / cfg.voxel).astype(np.int64), axis=0),
                               np.unique(np.floor(b / cfg.voxel).astype(np.int64), axis=0))
         assert (F._cell_key(a, cfg) == F._cell_key(b, cfg)) == same
-
-
-SCRIPT = r"""
-import json
-import navigation
-import perception._fit_kernel as fit_kernel
-import perception._shape_kernel as shape_kernel
-from navigation.kernels import compiled_signatures, warm_up
-from perception import ObstacleMap
-from service.sim import Simulator
-
-warm_up()
-fit_kernel.warm_up()
-before = compiled_signatures((shape_kernel,))
-office = navigation.load_world("office")
-sim = Simulator(office, seed=0)
-omap = ObstacleMap.from_world(office)
-for k in range(40):
-    sim.step((0.3, 0.4))
-    omap.update_scan(sim.scan_message(), sim.pose_message())
-after = compiled_signatures((shape_kernel,))
-print(json.dumps({k: [before.get(k), v] for k, v in after.items()
-                  if k.startswith("perception.") and before.get(k) != v}))
-"""
-
-
-def test_fit_kernel_warm_up_covers_shape_kernels():
-    out = subprocess.run([sys.executable, "-c", SCRIPT], cwd=ROOT, capture_output=True, text=True, timeout=600)
-    assert out.returncode == 0, out.stderr[-2000:]
-    assert json.loads(out.stdout.strip().splitlines()[-1]) == {}
 
 
 def _local_ref(p, q):
