@@ -32,7 +32,7 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["point_xy", "point_xy_cs", "beta_rows", "boundary_jet", "signed_distance_rows", "ray_length_rows", "far_gap_rows", "gap_bound_rows", "wall_bound_rows", "sample_table"]
+__all__ = ["point_xy", "point_xy_cs", "beta_rows", "boundary_jet", "signed_distance_rows", "ray_length_rows", "far_gap_rows", "gap_bound_rows", "wall_bound_rows", "sample_table", "refine_brackets"]
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -197,6 +197,39 @@ def sample_table(row: np.ndarray, n: int, sub: int = 16) -> tuple[np.ndarray, np
     psi, pts = np.empty(n), np.empty((n, 2))
     arc = _sample_table_kernel(P, int(n), int(sub), psi, pts)
     return psi, pts, float(arc)
+
+
+@numba.njit(**_JIT)
+def _refine_kernel(P, q, lo, hi, stages, grid, best):
+    m = grid.shape[0] - 1
+    for k in range(q.shape[0]):
+        qx, qy = q[k, 0], q[k, 1]
+        a, b = lo[k], hi[k]
+        bk = math.inf
+        for _ in range(stages):
+            kb, vb, cb = 0, math.inf, a
+            for t in range(m + 1):
+                ps = a + (b - a) * grid[t]
+                px, py = point_xy(P, k, ps)
+                v = (px - qx) ** 2 + (py - qy) ** 2
+                if v < vb:
+                    kb, vb, cb = t, v, ps
+            bk = min(bk, vb)
+            step = (b - a) / m
+            a, b = cb - step, cb + step
+        best[k] = bk
+
+
+def refine_brackets(P: np.ndarray, q: np.ndarray, lo: np.ndarray, hi: np.ndarray, stages: int, m: int) -> np.ndarray:
+    """Smallest squared distance from ``q (K, 2)`` to the boundary arcs ``psi in [lo, hi]`` of rows
+    ``P (K, 7)`` by nested sampling (``stages`` rounds of ``m + 1`` samples):
+    :func:`navigation.geometry._refine_brackets`, compiled, the same arithmetic."""
+    q = _arr(q).reshape(-1, 2)
+    best = np.empty(len(q))
+    if len(q):
+        _refine_kernel(_arr(P).reshape(-1, 7), q, _arr(lo), _arr(hi), int(stages),
+                       np.linspace(0.0, 1.0, int(m) + 1), best)
+    return best
 
 
 @numba.njit(**_JIT)

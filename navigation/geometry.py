@@ -536,21 +536,9 @@ def _signed(P: np.ndarray, q: np.ndarray, pair: np.ndarray, best: np.ndarray) ->
 def _refine_brackets(P: np.ndarray, q: np.ndarray, lo: np.ndarray, hi: np.ndarray, stages: int, m: int) -> np.ndarray:
     """Smallest squared distance from ``q (K, 2)`` to the boundary arcs ``psi in [lo, hi]`` of rows
     ``P (K, 7)``, each arc bracketing one local minimum: ``stages`` rounds of ``m + 1`` samples,
-    each shrinking the bracket to two sample steps around the best sample."""
-    qx, qy = q[:, 0, None], q[:, 1, None]
-    grid = np.linspace(0.0, 1.0, m + 1)[None, :]
-    rows = np.arange(len(q))
-    best = np.full(len(q), np.inf)
-    for _ in range(stages):
-        psi = lo[:, None] + (hi - lo)[:, None] * grid
-        bx, by = _point_xy_rows(P, psi)
-        d2 = (bx - qx) ** 2 + (by - qy) ** 2
-        k = np.argmin(d2, axis=1)
-        best = np.minimum(best, d2[rows, k])
-        step = (hi - lo) / m
-        centre = psi[rows, k]
-        lo, hi = centre - step, centre + step
-    return best
+    each shrinking the bracket to two sample steps around the best sample. Compiled:
+    :func:`navigation._geom_kernel.refine_brackets`, the same arithmetic."""
+    return _geom_kernel.refine_brackets(P, q, lo, hi, stages, m)
 
 
 def signed_distance_rows(P: np.ndarray, q: np.ndarray, n: int = 128, stages: int = 11, m: int = 16) -> np.ndarray:

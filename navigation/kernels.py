@@ -63,4 +63,5 @@ def warm_up() -> float:
     extreme_betas_arrays(P[::-1].copy(), np.array([1.0, -1.0]), np.zeros((2, 64)), P, psi, pts, spacing, w0)
     ray_length_packed(pack(obstacles[:1]), np.array([[0.0, 0.0]]), np.array([[1.0, 0.0]]), np.ones(1, bool))
     sample_table(pack(obstacles[:1])[0], 16)  # ExactDistance's tables (clearances, the simulator)
+    obstacles[-1].distance(np.array([[0.0, 0.0], [3.0, 3.0]]))  # ExactDistance's refinement
     return time.perf_counter() - t0
