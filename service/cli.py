@@ -15,6 +15,7 @@ invalid world or task, or a Zenoh configuration that cannot be opened.
 from __future__ import annotations
 
 import argparse
+import gc
 import json
 import logging
 import os
@@ -113,6 +114,8 @@ def _setup(a):
     """World, brain, node config, telemetry; raises HarmonicTampError/OSError on bad input."""
     import navigation
 
+    from tamp.run import prepare
+
     from .brain import ExecutiveBrain
     from .errors import ServiceError, TaskRejected
     from .node import NodeConfig
@@ -121,17 +124,9 @@ def _setup(a):
     if a.world is None:
         raise ServiceError("--world is required for run (a world file or built-in name)")
     world = navigation.load_world(a.world)
-    from navigation.kernels import warm_up
-
     # compile now (first run on a machine), not at the robot's first map change; say so if it takes
-    notice = threading.Timer(1.0, lambda: print("tamp-service: compiling the navigation kernels (first run on "
-                                                "this machine only, 10-30 s) ...", file=sys.stderr, flush=True))
-    notice.start()
-    from perception._fit_kernel import warm_up as warm_up_fit
-    from tamp._segment_kernel import warm_up as warm_up_segments
-
-    seconds = warm_up() + warm_up_fit() + warm_up_segments()
-    notice.cancel()
+    seconds = prepare(lambda: print("tamp-service: compiling the navigation kernels (first run on this machine "
+                                    "only, 10-30 s) ...", file=sys.stderr, flush=True))
     if seconds > 1.0:
         print(f"tamp-service: navigation kernels ready in {seconds:.1f} s (cached from now on)", file=sys.stderr,
               flush=True)
@@ -144,6 +139,8 @@ def _setup(a):
         if isinstance(err, TampError):
             raise TaskRejected(task_error_code(err), f"--task: {err}") from None
         raise
+    gc.collect()  # the world and the brain join the frozen start-up heap (see tamp.run.prepare)
+    gc.freeze()
     return world, brain, NodeConfig, Telemetry
 
 
@@ -309,6 +306,8 @@ def main(argv=None) -> int:
             print(f"error: zenoh: {err}".splitlines()[0], file=sys.stderr)
             return 2
         raise
+    finally:
+        gc.unfreeze()  # (a caller that goes on, e.g. a test, gets its collector back)
 
 
 if __name__ == "__main__":

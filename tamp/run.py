@@ -28,9 +28,36 @@ from navigation.world import World, load_world
 
 from .executive import Executive, ExecutiveConfig, ExecutiveState
 
-__all__ = ["run_mission", "main", "OMEGA_DEADBAND"]
+__all__ = ["run_mission", "main", "prepare", "OMEGA_DEADBAND"]
 
 OMEGA_DEADBAND = 0.05  #: |omega| below this (rad/s) does not count for the oscillation measure
+
+
+def prepare(notice=None) -> float:
+    """Get a process ready for a long run: compile (or load from numba's cache) every compiled
+    kernel the executive uses (navigation's, perception's fit and shapes, the roadmap's; see
+    :mod:`navigation.kernels`), then move the start-up heap out of the garbage collector's sight
+    (``gc.freeze``): it never becomes garbage, and a full collection that scans it (~150 000
+    objects, about 100 ms) would otherwise stall some tick. ``notice(message)`` is called once if
+    the compilation takes longer than a second (the first run on a machine). Returns the
+    seconds it took."""
+    import gc
+    import threading
+
+    from navigation.kernels import warm_up
+    from perception._fit_kernel import warm_up as warm_up_fit
+
+    from ._segment_kernel import warm_up as warm_up_segments
+
+    timer = threading.Timer(1.0, notice) if notice is not None else None
+    if timer is not None:
+        timer.start()
+    seconds = warm_up() + warm_up_fit() + warm_up_segments()
+    if timer is not None:
+        timer.cancel()
+    gc.collect()
+    gc.freeze()
+    return seconds
 
 
 def _oscillation(omegas, distance: float) -> float:
@@ -202,11 +229,22 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
+    import gc
+
+    try:
+        return _main(argv)
+    finally:
+        gc.unfreeze()  # (prepare froze the start-up heap; a caller that goes on gets its collector back)
+
+
+def _main(argv) -> int:
     try:
         args = _parser().parse_args(argv)
         if not (math.isfinite(args.max_time) and args.max_time > 0):
             raise _Usage(f"--max-time must be a positive number of seconds, got {args.max_time!r}")
         world = load_world(args.world)
+        prepare(lambda: print("tamp.run: compiling the kernels (first run on this machine only, 10-30 s) ...",
+                              file=sys.stderr, flush=True))
         # refuse a bad task before the run starts
         progress = (lambda line: print(line, file=sys.stderr, flush=True))
         t0 = time.perf_counter()
