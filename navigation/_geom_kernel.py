@@ -207,13 +207,13 @@ def _refine_kernel(P, q, lo, hi, stages, grid, best):
         a, b = lo[k], hi[k]
         bk = math.inf
         for _ in range(stages):
-            kb, vb, cb = 0, math.inf, a
+            vb, cb = math.inf, a
             for t in range(m + 1):
                 ps = a + (b - a) * grid[t]
                 px, py = point_xy(P, k, ps)
                 v = (px - qx) ** 2 + (py - qy) ** 2
                 if v < vb:
-                    kb, vb, cb = t, v, ps
+                    vb, cb = v, ps
             bk = min(bk, vb)
             step = (b - a) / m
             a, b = cb - step, cb + step
@@ -383,18 +383,52 @@ def _ray_length_kernel(p, o, d, entry):
 
 
 @numba.njit(**_JIT)
-def _far_gap_kernel(P, centres, ws, cs, sn):
+def _sector(pts, ws, ox, oy):
+    """The directions from ``(ox, oy)`` (inside the convex child whose counter-clockwise boundary
+    samples are ``pts``) in which the child's boundary can lie inside the workspace: from the
+    angle of the last sample outside it before the samples inside to that of the first one after
+    (the boundary's angle seen from an interior point increases along it, so the crossings lie in
+    between); ``(start, width)``, the whole circle when no sample (or every one) is inside."""
+    n = pts.shape[0]
+    inside = np.empty(n, np.bool_)
+    count = 0
+    for i in range(n):
+        inside[i] = _beta(ws, 0, pts[i, 0], pts[i, 1]) < 0.0
+        count += inside[i]
+    if count == 0 or count == n:
+        return 0.0, 4.0 * math.pi
+    start = 0
+    for i in range(n):  # the first inside sample after an outside one (the run is circular)
+        if inside[i] and not inside[i - 1]:
+            start = i
+            break
+    end = start
+    while inside[(end + 1) % n]:
+        end += 1
+    before, after = pts[(start - 1) % n], pts[(end + 1) % n]
+    a0 = math.atan2(before[1] - oy, before[0] - ox)
+    a1 = math.atan2(after[1] - oy, after[0] - ox)
+    return a0, (a1 - a0) % (2.0 * math.pi)
+
+
+@numba.njit(**_JIT)
+def _far_gap_kernel(P, centres, ws, cs, sn, angles, pts):
     K = P.shape[0]
     out = np.empty(K)
     c, s = ws[0, 2], ws[0, 3]
     ihw, ihh = 1.0 / ws[0, 4], 1.0 / ws[0, 5]
+    two_pi = 2.0 * math.pi
     for k in range(K):
         ox, oy = centres[k, 0], centres[k, 1]
         dx, dy = ox - ws[0, 0], oy - ws[0, 1]
         x0 = (dx * c + dy * s) * ihw
         y0 = (dy * c - dx * s) * ihh
+        a0, width = _sector(pts[k], ws, ox, oy)
         best = math.inf
         for j in range(cs.shape[0]):
+            if (angles[j] - a0) % two_pi > width + 1e-9:
+                continue  # its leaf exit lies outside the workspace
+
             # a ray that misses the workspace's bounding rectangle (slab test in its frame, with
             # a margin) cannot end its leaf exit inside the workspace: skip it
             ax = (cs[j] * c + sn[j] * s) * ihw
@@ -419,17 +453,20 @@ def _far_gap_kernel(P, centres, ws, cs, sn):
     return out
 
 
-def far_gap_rows(P: np.ndarray, centres: np.ndarray, ws_row: np.ndarray, n: int) -> np.ndarray:
-    """Per row of ``P (K, 7)`` (children of the workspace ``ws_row``), on ``n`` rays from
-    ``centres (K, 2)`` in evenly spaced directions, those whose exit from the child lies inside
-    the workspace: the smallest difference between the workspace's exit distance and the
-    child's (exact ray lengths); ``inf`` where no ray reaches into the workspace."""
+def far_gap_rows(P: np.ndarray, centres: np.ndarray, ws_row: np.ndarray, n: int, pts: np.ndarray) -> np.ndarray:
+    """Per row of ``P (K, 7)`` (children of the workspace ``ws_row``, with counter-clockwise
+    boundary samples ``pts (K, m, 2)``), on ``n`` rays from ``centres (K, 2)`` (inside the
+    children) in evenly spaced directions, those whose exit from the child lies inside the
+    workspace: the smallest difference between the workspace's exit distance and the child's
+    (exact ray lengths); ``inf`` where no ray reaches into the workspace. Only the rays within
+    the samples' bracket of the child's arc inside the workspace, and that meet the workspace's
+    bounding rectangle, are traced (the others cannot end inside it)."""
     P = _arr(P, dtype=float).reshape(-1, 7)
     if len(P) == 0:
         return np.empty(0)
     a = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
-    return _far_gap_kernel(P, _arr(centres, dtype=float).reshape(-1, 2),
-                           _arr(ws_row, dtype=float).reshape(1, 7), np.cos(a), np.sin(a))
+    return _far_gap_kernel(P, _arr(centres, dtype=float).reshape(-1, 2), _arr(ws_row, dtype=float).reshape(1, 7),
+                           np.cos(a), np.sin(a), a, _arr(pts).reshape(len(P), -1, 2))
 
 
 def ray_length_rows(p: np.ndarray, o: np.ndarray, d: np.ndarray, entry: np.ndarray | None = None) -> np.ndarray:

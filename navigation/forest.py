@@ -750,7 +750,8 @@ def _far_gaps(bodies: Sequence[_Body], I: Sequence[int], W: int, centres: np.nda
     out = np.array(_PAIRS.get_many(keys), dtype=float)  # None -> nan
     todo = np.nonzero(np.isnan(out))[0]
     if todo.size:
-        g = far_gap_rows(np.stack([bodies[I[t]].row for t in todo]), np.asarray(centres, float)[todo], ws.row, n)
+        g = far_gap_rows(np.stack([bodies[I[t]].row for t in todo]), np.asarray(centres, float)[todo], ws.row, n,
+                         np.stack([bodies[I[t]].pts for t in todo]))
         out[todo] = g
         _PAIRS.put_many((keys[t], float(v)) for t, v in zip(todo, g))
     return out

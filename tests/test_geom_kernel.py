@@ -112,7 +112,8 @@ def test_empty_inputs():
 
 
 def test_far_gaps_equal_the_brute_force_over_all_rays():
-    """far_gap_rows (which skips rays missing the workspace's bounding rectangle) equals the
+    """far_gap_rows (which skips the rays outside the samples' bracket of the child's arc inside
+    the workspace and those missing its bounding rectangle) equals the
     minimum over every ray whose child exit lies inside the workspace of the exit-distance
     difference, on the workspace children of random worlds."""
     from navigation._geom_kernel import far_gap_rows
@@ -128,7 +129,10 @@ def test_far_gaps_equal_the_brute_force_over_all_rays():
             continue
         P, ws = pack([forest.obstacles[i] for i in kids]), pack([w.workspace])[0]
         centres = forest.center[kids]
-        got = far_gap_rows(P, centres, ws, 720)
+        from navigation.forest import _SAMPLES, _bodies
+
+        pts = np.stack([b.pts for b in _bodies([forest.obstacles[i] for i in kids], _SAMPLES)])
+        got = far_gap_rows(P, centres, ws, 720, pts)
         a = np.linspace(0.0, 2.0 * np.pi, 720, endpoint=False)
         u = np.stack((np.cos(a), np.sin(a)), 1)
         for k in range(len(kids)):
