@@ -243,7 +243,7 @@ def _main(argv) -> int:
         if not (math.isfinite(args.max_time) and args.max_time > 0):
             raise _Usage(f"--max-time must be a positive number of seconds, got {args.max_time!r}")
         world = load_world(args.world)
-        prepare(lambda: print("tamp.run: compiling the kernels (first run on this machine only, 10-30 s) ...",
+        prepare(lambda: print("tamp.run: compiling the kernels (first run on this machine only, 10-40 s) ...",
                               file=sys.stderr, flush=True))
         # refuse a bad task before the run starts
         progress = (lambda line: print(line, file=sys.stderr, flush=True))
