@@ -4,7 +4,7 @@ The forest construction and the exact squircle geometry run in numba kernels
 (``navigation._geom_kernel``, ``_sample_kernel``, ``_pair_kernel``, ``_lp_kernel``,
 ``_center_kernel``). numba compiles a kernel on its first call and caches the machine code on
 disk (``cache=True``, in the package's ``__pycache__``), so the first process on a machine pays
-the compilation (10-20 s on the 2-core reference machine) and later processes load the cache
+the compilation (10-40 s on the 2-core reference machine) and later processes load the cache
 (well under a second). :func:`warm_up` makes that cost happen at a chosen moment (service start-
 up) instead of at the first map change of a running robot; :func:`compiled_signatures` lets a
 test check that nothing compiles after it.
