@@ -159,14 +159,8 @@ class _NumpyProblem:
 
 def _numpy_lm(x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, scale: np.ndarray, args: tuple, *, max_nfev: int = 30,
         xtol: float = 1e-4, ftol: float = 1e-4) -> tuple[np.ndarray, np.ndarray]:
-    """Levenberg-Marquardt on :func:`_residuals` (exact Jacobian :func:`_residuals_jac`) from
-    ``x0``, variables scaled by ``scale``, steps projected onto the bounds ``[lo, hi]``; at most
-    ``max_nfev`` residual evaluations; stops when the cost falls by less than ``ftol`` times
-    itself or the scaled step is below ``xtol (xtol + |x / scale|)`` (scipy's tests). Returns
-    ``(x, residuals)``. The six-parameter problem needs no more than a 6 x 6 solve per step;
-    ``scipy.optimize.least_squares`` spent about 60 % of a fit in its own bookkeeping
-    (measured: 6 ms per fit of 160 points and 200 free points, 2.3 ms of it in the residuals
-    and Jacobians). ``args = (q, free, w_free, ref, wq)``; evaluated by :class:`_Problem`."""
+    """The former numpy body of :func:`perception.fit._lm` (see its docstring), kept verbatim as
+    the compiled kernel's reference."""
     prob = _NumpyProblem(*args)
     x = x0.copy()
     r, gx = prob.residuals(x)
