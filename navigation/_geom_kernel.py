@@ -7,8 +7,8 @@ small arrays (the forest construction calls these on a few dozen rows at a time)
 * :func:`point_xy`: a boundary point of a packed squircle row (the parametrisation of
   :meth:`~navigation.geometry.Squircle.point_at`, :func:`~navigation.geometry.point_at_rows`);
 * :func:`signed_distance_rows`: :func:`navigation.geometry.signed_distance_rows` (exact
-  point-to-squircle distances: sampled candidates bracketing every local minimum, refined by
-  nested sampling);
+  point-to-squircle distances: sampled candidates bracketing every local minimum, narrowed by
+  nested sampling and polished by Newton steps);
 * :func:`ray_length_rows`: :func:`navigation.geometry.ray_length_packed` (exact ray lengths,
   paper 001 eq. 15-16: monotone Newton on the gauge ``sqrt(beta + 1)``);
 * :func:`far_gap_rows`: :func:`navigation.forest._far_gaps` (the room beyond a workspace child
@@ -255,12 +255,13 @@ def beta_rows(P: np.ndarray, q: np.ndarray) -> np.ndarray:
 
 
 @numba.njit(**_JIT)
-def _signed_distance_kernel(P, q, n, stages, m):
+def _signed_distance_kernel(P, q, n, stages, m, polish):
     K = q.shape[0]
     out = np.empty(K)
     bx = np.empty(n)
     by = np.empty(n)
     d2 = np.empty(n)
+    cx, cy, cl = np.empty(n), np.empty(n), np.empty(n)
     dpsi = 2.0 * math.pi / n
     cs = np.empty(n)
     sn = np.empty(n)
@@ -270,25 +271,29 @@ def _signed_distance_kernel(P, q, n, stages, m):
         qx, qy = q[k, 0], q[k, 1]
         for j in range(n):
             bx[j], by[j] = point_xy_cs(P, k, cs[j], sn[j])
-        # half the longest arc between samples (chord over the cosine of the turn, capped)
+        # chords j -> j + 1 (direction and length)
+        for j in range(n):
+            jp = j + 1 if j + 1 < n else 0
+            cx[j], cy[j] = bx[jp] - bx[j], by[jp] - by[j]
+            cl[j] = math.hypot(cx[j], cy[j])
+        # half the longest arc between samples (chord over the cosine of the turn between the
+        # neighbouring chords j - 1 and j + 1, capped)
         half = 0.0
         dmin = math.inf
         for j in range(n):
-            jm, jp, jpp = (j - 1) % n, (j + 1) % n, (j + 2) % n
-            ex, ey = bx[jp] - bx[j], by[jp] - by[j]
-            chord = math.hypot(ex, ey)
-            # neighbouring chords: k - 1 -> k and k + 1 -> k + 2
-            ex0, ey0 = bx[j] - bx[jm], by[j] - by[jm]
-            ex2, ey2 = bx[jpp] - bx[jp], by[jpp] - by[jp]
-            cos = (ex0 * ex2 + ey0 * ey2) / max(math.hypot(ex0, ey0) * math.hypot(ex2, ey2), 1e-300)
-            arc = chord / max(cos, 0.1) if cos > 0.1 else math.inf
+            jm = j - 1 if j > 0 else n - 1
+            jp = j + 1 if j + 1 < n else 0
+            cos = (cx[jm] * cx[jp] + cy[jm] * cy[jp]) / max(cl[jm] * cl[jp], 1e-300)
+            arc = cl[j] / max(cos, 0.1) if cos > 0.1 else math.inf
             half = max(half, 0.5 * arc)
             d2[j] = (bx[j] - qx) ** 2 + (by[j] - qy) ** 2
             dmin = min(dmin, d2[j])
         limit = (math.sqrt(dmin) + half) ** 2
         best = math.inf
         for j in range(n):
-            if d2[j] <= d2[(j - 1) % n] and d2[j] <= d2[(j + 1) % n] and d2[j] <= limit:
+            if d2[j] > limit:
+                continue
+            if d2[j] <= d2[j - 1 if j > 0 else n - 1] and d2[j] <= d2[j + 1 if j + 1 < n else 0]:
                 lo = (j - 1) * dpsi if j > 0 else (n - 1) * dpsi - 2.0 * math.pi
                 hi = ((j + 1) % n) * dpsi if j < n - 1 else 2.0 * math.pi
                 for _ in range(stages):
@@ -307,19 +312,42 @@ def _signed_distance_kernel(P, q, n, stages, m):
                     best = min(best, vb)
                     centre = lo + kb * h
                     lo, hi = centre - h, centre + h
+                # polish: Newton on the stationarity of |x(psi) - q|^2 inside the last bracket
+                # (quadratic from there); a step that leaves the bracket or meets a non-convex
+                # spot stops it. Only boundary points are measured, so the result can only
+                # move towards the true distance.
+                ps = 0.5 * (lo + hi)
+                for _ in range(polish):
+                    px, py, dx1, dy1, dx2, dy2 = _jet(P[k], ps)
+                    ex, ey = px - qx, py - qy
+                    best = min(best, ex * ex + ey * ey)
+                    g1 = ex * dx1 + ey * dy1
+                    g2 = dx1 * dx1 + dy1 * dy1 + ex * dx2 + ey * dy2
+                    if not g2 > 0.0:
+                        break
+                    step = g1 / g2
+                    ps -= step
+                    if not lo <= ps <= hi:
+                        break
+                    if abs(step) <= 1e-15:
+                        break
+                else:
+                    px, py = point_xy(P, k, ps)
+                    best = min(best, (px - qx) ** 2 + (py - qy) ** 2)
         dist = math.sqrt(best)
         out[k] = -dist if _beta(P, k, qx, qy) < 0.0 else dist
     return out
 
 
-def signed_distance_rows(P: np.ndarray, q: np.ndarray, n: int = 128, stages: int = 11, m: int = 16) -> np.ndarray:
+def signed_distance_rows(P: np.ndarray, q: np.ndarray, n: int = 128, stages: int = 3, m: int = 16,
+                         polish: int = 4) -> np.ndarray:
     """Signed distances (negative inside) of the points ``q (K, 2)`` to the squircles of the rows
     ``P (K, 7)``: :func:`navigation.geometry.signed_distance_rows`, compiled."""
     q = _arr(q, dtype=float).reshape(-1, 2)
     P = _arr(P, dtype=float).reshape(-1, 7)
     if len(q) == 0:
         return np.empty(0)
-    return _signed_distance_kernel(P, q, int(n), int(stages), int(m))
+    return _signed_distance_kernel(P, q, int(n), int(stages), int(m), int(polish))
 
 
 @numba.njit(inline="always", **_JIT)
