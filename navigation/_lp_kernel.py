@@ -54,7 +54,10 @@ def _soft_min_row(ax, ay, b, n, qx, qy, tau, w):
     zs = 0.0
     for k in range(n):
         d = -(w[k] - m) / tau
-        z = math.exp(d) if d > -746.0 else 0.0  # exp underflows to exactly 0 below -745.2
+        # weights below exp(-50) ~ 2e-22 (relative to the largest, 1) are dropped: they cannot
+        # change the sum ``zs >= 1`` nor, above rounding, the weighted moments; exp is the
+        # kernel's main cost and most half-planes are far from the minimum after the first stage
+        z = math.exp(d) if d > -50.0 else 0.0
         w[k] = z
         zs += z
     for k in range(n):
