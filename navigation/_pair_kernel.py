@@ -291,9 +291,9 @@ def pair_distance(bodies, I: np.ndarray, J: np.ndarray, tol: float = 1e-12):
         bi = [bodies[I[k]] for k in rows]
         bj = [bodies[J[k]] for k in rows]
         out = pair_distance_arrays(
-            np.stack([b.row for b in bi]), np.stack([b.row for b in bj]),
-            np.stack([b.pts for b in bi]), np.stack([b.pts for b in bj]),
-            np.stack([b.psi for b in bi]), np.stack([b.psi for b in bj]),
+            np.array([b.row for b in bi]), np.array([b.row for b in bj]),
+            np.array([b.pts for b in bi]), np.array([b.pts for b in bj]),
+            np.array([b.psi for b in bi]), np.array([b.psi for b in bj]),
             np.array([b.w0 for b in bi]), np.array([b.w0 for b in bj]),
             np.array([b.spacing for b in bi]), np.array([b.spacing for b in bj]), tol)
         d[rows], qa[rows], qb[rows] = out

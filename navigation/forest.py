@@ -340,7 +340,7 @@ def _signed_distance(bodies: Sequence[_Body], bid: np.ndarray, q: np.ndarray) ->
     """Exact signed distances of points ``q (K, 2)`` to bodies ``bid (K,)`` (negative inside):
     :func:`~navigation.geometry.signed_distance_rows`."""
     bid = np.asarray(bid, dtype=np.intp)
-    return signed_distance_rows(np.stack([bodies[b].row for b in bid]) if len(bid) else np.zeros((0, 7)), q)
+    return signed_distance_rows(np.array([bodies[b].row for b in bid]) if len(bid) else np.zeros((0, 7)), q)
 
 
 def _gap_bound_rows(A: np.ndarray, B: np.ndarray) -> np.ndarray:
@@ -434,8 +434,8 @@ def _extreme_betas(bodies: Sequence[_Body], others: np.ndarray, sign: np.ndarray
     """
     if len(bodies) == 0:
         return np.empty(0)
-    return extreme_betas_arrays(others, sign, vals, np.stack([b.row for b in bodies]), np.stack([b.psi for b in bodies]),
-                                np.stack([b.pts for b in bodies]), np.array([b.spacing for b in bodies]),
+    return extreme_betas_arrays(others, sign, vals, np.array([b.row for b in bodies]), np.array([b.psi for b in bodies]),
+                                np.array([b.pts for b in bodies]), np.array([b.spacing for b in bodies]),
                                 np.array([b.w0 for b in bodies]))
 
 
@@ -486,8 +486,8 @@ def _common_centers(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, outsi
     if E == 0:
         return np.empty((0, 2)), np.empty(0)
     sgn = np.where(outside, 1.0, -1.0)  # depth in J = sgn * signed distance to J
-    PI = np.stack([bodies[i].row for i in I])
-    PJ = np.stack([bodies[j].row for j in J])
+    PI = np.array([bodies[i].row for i in I])
+    PJ = np.array([bodies[j].row for j in J])
     ws = np.nonzero(outside)[0]
     wsb = bodies[J[ws[0]]] if ws.size else None
     A, B, LO, HI, L, owner = center_programs(PI, PJ, outside, *((wsb.row, wsb.pts, wsb.psi) if wsb is not None else (None,) * 3),
@@ -579,8 +579,8 @@ def _thin_centers(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, sgn: np
             L.append(scale)
             owner.append(k)
     width = max(len(b) for b in B)
-    A = np.stack([np.concatenate((a, np.zeros((width - len(a), 2)))) for a in A])
-    B = np.stack([np.concatenate((b, np.full(width - len(b), 1e200))) for b in B])
+    A = np.array([np.concatenate((a, np.zeros((width - len(a), 2)))) for a in A])
+    B = np.array([np.concatenate((b, np.full(width - len(b), 1e200))) for b in B])
     owner = np.asarray(owner)
     q, _ = _max_min_slack(A, B, np.array(LO), np.array(HI), np.array(L))
     dI, dJ = np.split(_signed_distance(bodies, np.concatenate((I[owner], J[owner])), np.concatenate((q, q))), 2)
@@ -651,7 +651,7 @@ def _workspace_relations(bodies: Sequence[_Body], ws: _Body) -> list[str]:
         return out
     sub = [bodies[k] for k in todo]
     W = np.broadcast_to(ws.row, (len(sub), 7))
-    vals = _beta(W, np.stack([b.pts for b in sub]))  # (k, n)
+    vals = _beta(W, np.array([b.pts for b in sub]))  # (k, n)
     lo, hi = vals.min(axis=1), vals.max(axis=1)
     rel = [""] * len(sub)
     inner = np.nonzero(hi < 0)[0]
@@ -689,9 +689,9 @@ def _pair_relations(A: Sequence[_Body], B: Sequence[_Body]) -> list[str | None]:
     todo = [k for k, r in enumerate(out) if r is None]
     if todo:
         sa, sb = [A[k] for k in todo], [B[k] for k in todo]
-        PA, PB = np.stack([a.row for a in sa]), np.stack([b.row for b in sb])
-        va = _beta(PB, np.stack([a.pts for a in sa]))  # B's beta on A's samples
-        vb = _beta(PA, np.stack([b.pts for b in sb]))
+        PA, PB = np.array([a.row for a in sa]), np.array([b.row for b in sb])
+        va = _beta(PB, np.array([a.pts for a in sa]))  # B's beta on A's samples
+        vb = _beta(PA, np.array([b.pts for b in sb]))
         over = (va.min(axis=1) < 0) | (vb.min(axis=1) < 0)
         und = np.nonzero(~over)[0]
         if und.size:
@@ -750,8 +750,8 @@ def _far_gaps(bodies: Sequence[_Body], I: Sequence[int], W: int, centres: np.nda
     out = np.array(_PAIRS.get_many(keys), dtype=float)  # None -> nan
     todo = np.nonzero(np.isnan(out))[0]
     if todo.size:
-        g = far_gap_rows(np.stack([bodies[I[t]].row for t in todo]), np.asarray(centres, float)[todo], ws.row, n,
-                         np.stack([bodies[I[t]].pts for t in todo]))
+        g = far_gap_rows(np.array([bodies[I[t]].row for t in todo]), np.asarray(centres, float)[todo], ws.row, n,
+                         np.array([bodies[I[t]].pts for t in todo]))
         out[todo] = g
         _PAIRS.put_many((keys[t], float(v)) for t, v in zip(todo, g))
     return out
@@ -1000,7 +1000,7 @@ def _build(workspace, obstacles, min_gap, min_overlap, *, full: bool) -> Forest 
                           f"most once", obstacles=tuple(obst) + ((-1,) if -1 in ids else ()), rule="cycle")
 
     # --- distances: lower bounds for every pair, exact where a rule needs them
-    rows = np.stack([bodies[k].row for k in keep]) if m else np.zeros((0, 7))
+    rows = np.array([bodies[k].row for k in keep]) if m else np.zeros((0, 7))
     bound = _gap_bounds(rows)
     exact = np.zeros((m, m), bool)
     edge_set = set(edges)
@@ -1070,10 +1070,13 @@ def _build(workspace, obstacles, min_gap, min_overlap, *, full: bool) -> Forest 
             root = comp[0]
         else:
             ecc = {i: _eccentricity(adj, i) for i in comp}
-            for i in comp:
-                if i not in area:  # rounded: equal shapes tie exactly, then the lower index wins
-                    area[i] = round(obstacles[keep[i]].area, 9)
-            root = min(comp, key=lambda i: (ecc[i], -area[i], i))
+            low = min(ecc.values())
+            centre = [i for i in comp if ecc[i] == low]  # a tree's centre: one or two members
+            if len(centre) > 1:
+                for i in centre:
+                    if i not in area:  # rounded: equal shapes tie exactly, then the lower index wins
+                        area[i] = round(obstacles[keep[i]].area, 9)
+            root = min(centre, key=lambda i: (-area.get(i, 0.0), i))
         roots.append(root)
         tree_of[root] = t
         orient(root, t)
