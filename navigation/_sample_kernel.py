@@ -4,9 +4,11 @@
 packed squircle row, evenly spaced in arc length (as :meth:`Squircle.boundary_psi`: arc length on
 ``8 n`` chords of the parametrisation, inverted by linear interpolation), their points, the
 search window ``w0`` (1.5 x the largest angle gap) and the sample ``spacing`` (largest chord).
-The chords are those of the unit squircle (same ``s``) scaled by the half-extents, as in the
-numpy version; the cosines and sines of the ``8 n + 1`` grid angles are computed once (per
-``n``), not per row.
+The arc length is measured on the first quarter of the boundary only (``2 n`` chords) and
+mirrored: a squircle and its parametrisation are symmetric about both local axes, so the samples
+equal those of the whole-boundary computation to rounding (~1e-15). The chords are those of the
+unit squircle (same ``s``) scaled by the half-extents; the cosines and sines of the ``2 n + 1``
+quarter-grid angles are computed once (per ``n``), not per row.
 
 :func:`extreme_betas_arrays` mirrors :func:`navigation.forest._extreme_betas` with its grid
 pattern search :func:`navigation.forest._pattern_min` (``m = 9``, ``shrink = 0.3``,
@@ -17,13 +19,9 @@ spacing times the largest gradient norm of beta over the samples, paper 001 eq. 
 :func:`navigation.geometry.beta_gradient_rows`), else refined by the pattern search on the
 boundary parameter (move to the best grid point if strictly better, else shrink the grid).
 
-Rows are independent: a row's result does not depend on the other rows of its batch. Formulas
-follow the numpy code operation by operation (same order of floating-point operations), so
-results agree to rounding; the one difference is in :func:`sample_rows`' inversion of the arc
-length, which compares ``u`` with the targets directly where the numpy code compares them after
-adding ``2 k`` (row ``k`` of its batch): an index may differ by one where a target lies within
-an ulp of ``2 k`` of a node, which moves ``psi`` by an ulp-sized amount (the kernel's rows are
-bit-identical to the numpy function called on one row). The chord lengths use an inline
+Rows are independent: a row's result does not depend on the other rows of its batch. The
+extreme-beta formulas follow the former numpy code operation by operation (same order of
+floating-point operations), so results agree to rounding. The chord lengths use an inline
 ``hypot`` (glibc's algorithm, bit-identical to it) and the largest gradient norm computes
 ``hypot`` only where it can be the largest: both give numpy's values, faster. Kernels use
 ``error_model="numpy"``: a division by zero gives inf or NaN (as numpy) instead of raising.

@@ -1,5 +1,6 @@
 """The numba kernels of navigation._sample_kernel (behind navigation.forest's ``_sample_rows`` and
-``_extreme_betas``; bit-identical to the former numpy code on every captured build input) on
+``_extreme_betas``; the samples equal Squircle.boundary_psi's whole-boundary computation to
+rounding, the extreme betas were bit-identical to the former numpy code on every captured build input) on
 inputs captured from real builds and random ones: samples on the boundary, evenly spaced in arc
 length; extreme betas never worse than a dense sampling where they are refined, and of the right
 sign elsewhere; rows independent of their batch."""
@@ -116,6 +117,21 @@ def test_sample_rows_properties_real(name):
     # thin walls (aspect down to 1:10) with s = 0.99: chords within 2 %
     for P, n in _captured(name)[0]:
         _check_sample_properties(*sample_rows(P, n), chord_spread=0.02)
+
+
+@pytest.mark.parametrize("n", [256, 1024, 90, 7])
+def test_sample_rows_quarter_equals_the_whole_boundary(n):
+    # the arc length is measured on one quarter and mirrored: the angles equal those of the
+    # whole-boundary computation (Squircle.boundary_psi, 8 n chords) to rounding, for any n
+    rng = np.random.default_rng(7 + n)
+    P = _random_rows(rng, 40)
+    P[::4, S] = 0.99
+    P[1::4, S] = 0.0
+    psi = sample_rows(P, n)[1]
+    for k in range(len(P)):
+        sq = navigation.Squircle(center=tuple(P[k, :2]), width=2 * P[k, 4], height=2 * P[k, 5],
+                                 theta=float(np.arctan2(P[k, 3], P[k, 2])), s=float(P[k, S]))
+        np.testing.assert_allclose(psi[k], sq.boundary_psi(n), rtol=0, atol=1e-11)
 
 
 def test_sample_rows_empty():
