@@ -520,19 +520,28 @@ def _corner(P, k, t):
     return P[k, 0] + P[k, 2] * lx - P[k, 3] * ly, P[k, 1] + P[k, 3] * lx + P[k, 2] * ly
 
 
-@numba.njit(**_JIT)
-def _corner_edge(P, a, Q, b):
-    """Smallest distance from the corners of row ``P[a]``'s rectangle to the edges of ``Q[b]``'s."""
+@numba.njit(inline="always", **_JIT)
+def _corners(P, k, out):
+    """The four corners of row ``P[k]``'s bounding rectangle (:func:`_corner`) into ``out (4, 2)``."""
+    for t in range(4):
+        out[t, 0], out[t, 1] = _corner(P, k, t)
+
+
+@numba.njit(inline="always", **_JIT)
+def _corner_edge2(ca, cb):
+    """Smallest squared distance from the corners ``ca (4, 2)`` of one rectangle to the edges of
+    the rectangle with corners ``cb (4, 2)`` (counter-clockwise)."""
     best = math.inf
-    for u in range(4):
-        px, py = _corner(P, a, u)
-        for e in range(4):
-            ax_, ay_ = _corner(Q, b, e)
-            bx_, by_ = _corner(Q, b, (e + 1) % 4)
-            ex, ey = bx_ - ax_, by_ - ay_
-            vx, vy = px - ax_, py - ay_
-            t = min(max((vx * ex + vy * ey) / (ex * ex + ey * ey), 0.0), 1.0)
-            best = min(best, math.hypot(vx - t * ex, vy - t * ey))
+    for e in range(4):
+        ax_, ay_ = cb[e, 0], cb[e, 1]
+        f = e + 1 if e < 3 else 0
+        ex, ey = cb[f, 0] - ax_, cb[f, 1] - ay_
+        inv = 1.0 / (ex * ex + ey * ey)
+        for u in range(4):
+            vx, vy = ca[u, 0] - ax_, ca[u, 1] - ay_
+            t = min(max((vx * ex + vy * ey) * inv, 0.0), 1.0)
+            wx, wy = vx - t * ex, vy - t * ey
+            best = min(best, wx * wx + wy * wy)
     return best
 
 
@@ -540,6 +549,7 @@ def _corner_edge(P, a, Q, b):
 def _gap_bound_kernel(A, B):
     E = A.shape[0]
     out = np.empty(E)
+    ca, cb = np.empty((4, 2)), np.empty((4, 2))
     for k in range(E):
         dx, dy = B[k, 0] - A[k, 0], B[k, 1] - A[k, 1]
         sep = False
@@ -556,7 +566,11 @@ def _gap_bound_kernel(A, B):
             rb = B[k, 4] * abs(nx * B[k, 2] + ny * B[k, 3]) + B[k, 5] * abs(-nx * B[k, 3] + ny * B[k, 2])
             if abs(nx * dx + ny * dy) > ra + rb:
                 sep = True
-        rect = min(_corner_edge(A, k, B, k), _corner_edge(B, k, A, k)) if sep else 0.0
+        rect = 0.0
+        if sep:  # separated rectangles: their distance is the nearest corner-edge distance
+            _corners(A, k, ca)
+            _corners(B, k, cb)
+            rect = math.sqrt(min(_corner_edge2(ca, cb), _corner_edge2(cb, ca)))
         disc = math.hypot(dx, dy) - math.hypot(A[k, 4], A[k, 5]) - math.hypot(B[k, 4], B[k, 5])
         out[k] = max(max(rect, disc), 0.0)
     return out
