@@ -439,13 +439,48 @@ def _sector(pts, ws, ox, oy):
     return a0, (a1 - a0) % (2.0 * math.pi)
 
 
+@numba.njit(inline="always", **_JIT)
+def _far_ray(P, k, ws, ox, oy, x0, y0, c, s, ihw, ihh, cj, sj, aj, a0, width):
+    """The far gap along one ray from ``(ox, oy)`` (direction ``(cj, sj)``, angle ``aj``) of
+    :func:`_far_gap_kernel`: the workspace exit minus the child's exit, ``inf`` where the ray
+    cannot end its child exit inside the workspace (outside the sector ``a0 .. a0 + width``,
+    missing the workspace's bounding rectangle) or does not."""
+    if (aj - a0) % (2.0 * math.pi) > width + 1e-9:
+        return math.inf  # its leaf exit lies outside the workspace
+    # a ray that misses the workspace's bounding rectangle (slab test in its frame, with a
+    # margin) cannot end its leaf exit inside the workspace
+    ax = (cj * c + sj * s) * ihw
+    ay = (sj * c - cj * s) * ihh
+    lo, hi = 0.0, math.inf
+    if ax != 0.0:
+        t1, t2 = (-1.0 - 1e-9 - x0) / ax, (1.0 + 1e-9 - x0) / ax
+        lo, hi = max(lo, min(t1, t2)), min(hi, max(t1, t2))
+    elif abs(x0) > 1.0 + 1e-9:
+        return math.inf
+    if ay != 0.0:
+        t1, t2 = (-1.0 - 1e-9 - y0) / ay, (1.0 + 1e-9 - y0) / ay
+        lo, hi = max(lo, min(t1, t2)), min(hi, max(t1, t2))
+    elif abs(y0) > 1.0 + 1e-9:
+        return math.inf
+    if lo > hi:
+        return math.inf
+    r_leaf = _ray(P, k, ox, oy, cj, sj, False)
+    if _beta(ws, 0, ox + r_leaf * cj, oy + r_leaf * sj) < 0.0:
+        return _ray(ws, 0, ox, oy, cj, sj, False) - r_leaf
+    return math.inf
+
+
 @numba.njit(**_JIT)
-def _far_gap_kernel(P, centres, ws, cs, sn, angles, pts):
+def _far_gap_kernel(P, centres, ws, cs, sn, angles, pts, stride):
     K = P.shape[0]
+    n = cs.shape[0]
     out = np.empty(K)
     c, s = ws[0, 2], ws[0, 3]
     ihw, ihh = 1.0 / ws[0, 4], 1.0 / ws[0, 5]
-    two_pi = 2.0 * math.pi
+    val = np.empty(n)
+    if stride < 1 or n % stride != 0:
+        stride = 1
+    nc = n // stride
     for k in range(K):
         ox, oy = centres[k, 0], centres[k, 1]
         dx, dy = ox - ws[0, 0], oy - ws[0, 1]
@@ -453,48 +488,46 @@ def _far_gap_kernel(P, centres, ws, cs, sn, angles, pts):
         y0 = (dy * c - dx * s) * ihh
         a0, width = _sector(pts[k], ws, ox, oy)
         best = math.inf
-        for j in range(cs.shape[0]):
-            if (angles[j] - a0) % two_pi > width + 1e-9:
-                continue  # its leaf exit lies outside the workspace
-
-            # a ray that misses the workspace's bounding rectangle (slab test in its frame, with
-            # a margin) cannot end its leaf exit inside the workspace: skip it
-            ax = (cs[j] * c + sn[j] * s) * ihw
-            ay = (sn[j] * c - cs[j] * s) * ihh
-            lo, hi = 0.0, math.inf
-            if ax != 0.0:
-                t1, t2 = (-1.0 - 1e-9 - x0) / ax, (1.0 + 1e-9 - x0) / ax
-                lo, hi = max(lo, min(t1, t2)), min(hi, max(t1, t2))
-            elif abs(x0) > 1.0 + 1e-9:
-                continue
-            if ay != 0.0:
-                t1, t2 = (-1.0 - 1e-9 - y0) / ay, (1.0 + 1e-9 - y0) / ay
-                lo, hi = max(lo, min(t1, t2)), min(hi, max(t1, t2))
-            elif abs(y0) > 1.0 + 1e-9:
-                continue
-            if lo > hi:
-                continue
-            r_leaf = _ray(P, k, ox, oy, cs[j], sn[j], False)
-            if _beta(ws, 0, ox + r_leaf * cs[j], oy + r_leaf * sn[j]) < 0.0:
-                best = min(best, _ray(ws, 0, ox, oy, cs[j], sn[j], False) - r_leaf)
+        # coarse: every stride-th ray
+        for i in range(nc):
+            j = i * stride
+            val[j] = _far_ray(P, k, ws, ox, oy, x0, y0, c, s, ihw, ihh, cs[j], sn[j], angles[j], a0, width)
+            best = min(best, val[j])
+        if stride > 1:
+            # fine: the rays on both sides of every coarse local minimum (an untraced ray counts
+            # as +inf, so a traced ray at the end of the traced set is refined towards it when
+            # the values fall towards that end)
+            for i in range(nc):
+                j = i * stride
+                v = val[j]
+                if v == math.inf or v > val[((i - 1) % nc) * stride] or v > val[((i + 1) % nc) * stride]:
+                    continue
+                for d in range(1, stride):
+                    for jj in ((j - d) % n, (j + d) % n):
+                        best = min(best, _far_ray(P, k, ws, ox, oy, x0, y0, c, s, ihw, ihh, cs[jj], sn[jj],
+                                                  angles[jj], a0, width))
         out[k] = best
     return out
 
 
-def far_gap_rows(P: np.ndarray, centres: np.ndarray, ws_row: np.ndarray, n: int, pts: np.ndarray) -> np.ndarray:
+def far_gap_rows(P: np.ndarray, centres: np.ndarray, ws_row: np.ndarray, n: int, pts: np.ndarray,
+                 stride: int = 4) -> np.ndarray:
     """Per row of ``P (K, 7)`` (children of the workspace ``ws_row``, with counter-clockwise
     boundary samples ``pts (K, m, 2)``), on ``n`` rays from ``centres (K, 2)`` (inside the
     children) in evenly spaced directions, those whose exit from the child lies inside the
     workspace: the smallest difference between the workspace's exit distance and the child's
     (exact ray lengths); ``inf`` where no ray reaches into the workspace. Only the rays within
     the samples' bracket of the child's arc inside the workspace, and that meet the workspace's
-    bounding rectangle, are traced (the others cannot end inside it)."""
+    bounding rectangle, are traced (the others cannot end inside it). Coarse to fine: every
+    ``stride``-th ray first, then the rays between each coarse local minimum and its coarse
+    neighbours (``stride = 1``: every ray; the minimum is the same unless the difference has
+    a dip narrower than ``stride`` rays that is not next to a coarse local minimum)."""
     P = _arr(P, dtype=float).reshape(-1, 7)
     if len(P) == 0:
         return np.empty(0)
     a = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
     return _far_gap_kernel(P, _arr(centres, dtype=float).reshape(-1, 2), _arr(ws_row, dtype=float).reshape(1, 7),
-                           np.cos(a), np.sin(a), a, _arr(pts).reshape(len(P), -1, 2))
+                           np.cos(a), np.sin(a), a, _arr(pts).reshape(len(P), -1, 2), int(stride))
 
 
 def ray_length_rows(p: np.ndarray, o: np.ndarray, d: np.ndarray, entry: np.ndarray | None = None) -> np.ndarray:

@@ -742,7 +742,8 @@ def _far_gaps(bodies: Sequence[_Body], I: Sequence[int], W: int, centres: np.nda
 
     On ``n`` rays from the centre (evenly spaced directions), those whose exit from the child
     lies inside the workspace: the workspace exit distance minus the child's exit distance
-    (exact ray lengths); the minimum over them (memoised per child and workspace). Compiled:
+    (exact ray lengths); the minimum over them (memoised per child and workspace), found coarse
+    to fine (every 4th ray, then the rays next to coarse local minima). Compiled:
     :func:`navigation._geom_kernel.far_gap_rows`.
     """
     ws = bodies[W]

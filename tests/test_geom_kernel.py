@@ -113,7 +113,8 @@ def test_empty_inputs():
 
 def test_far_gaps_equal_the_brute_force_over_all_rays():
     """far_gap_rows (which skips the rays outside the samples' bracket of the child's arc inside
-    the workspace and those missing its bounding rectangle) equals the
+    the workspace and those missing its bounding rectangle, and traces every 4th ray first and
+    the others only next to coarse local minima) equals the
     minimum over every ray whose child exit lies inside the workspace of the exit-distance
     difference, on the workspace children of random worlds."""
     from navigation._geom_kernel import far_gap_rows
