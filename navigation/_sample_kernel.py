@@ -39,7 +39,7 @@ from ._geom_kernel import _arr
 
 from .geometry import COS, CX, CY, HH, HW, S, SIN
 
-__all__ = ["sample_rows", "extreme_betas_arrays"]
+__all__ = ["sample_rows", "extreme_betas_arrays", "workspace_relation_codes", "pair_relation_codes"]
 
 _M, _SHRINK, _TOL, _MAX_ROUNDS = 9, 0.3, 1e-13, 200  # the pattern search of _extreme_betas
 _OFFS = np.linspace(-1.0, 1.0, _M)  # its grid offsets (forest._grid(9, 1))
@@ -316,26 +316,35 @@ def _pattern_min(other, body, sg: float, c0: float, w0: float, f0: float, offs, 
 
 
 @numba.njit(cache=True, error_model="numpy")
+def _extreme_row(other, sg, vals, row, psi, pts, spacing, w0, offs, shrink, tol, max_rounds, scratch):
+    """One row of :func:`forest._extreme_betas` (see the module docstring): ``min`` (``sg = +1``)
+    or ``max`` (``-1``) of ``other``'s beta along the body ``row`` sampled at ``psi (n,)``,
+    ``pts (n, 2)``, given its values ``vals (n,)`` there; ``scratch (n,)``."""
+    n = vals.shape[0]
+    a, va = 0, sg * vals[0]
+    if not math.isnan(va):  # numpy argmin: the first NaN, else the first minimum
+        for j in range(1, n):
+            v = sg * vals[j]
+            if math.isnan(v):
+                a, va = j, v
+                break
+            if v < va:
+                a, va = j, v
+    # refine unless |va| > 2 spacing max|grad beta| + 1e-12 (NaN: refine)
+    g = _max_grad_norm(other, pts, scratch)
+    if not abs(va) > 2.0 * spacing * g + 1e-12:  # NaN included
+        _, va = _pattern_min(other, row, sg, psi[a], w0, va, offs, shrink, tol, max_rounds)
+    return sg * va
+
+
+@numba.njit(cache=True, error_model="numpy")
 def _extreme_kernel(others, sign, vals, rows, psi, pts, spacing, w0, offs, shrink, tol, max_rounds, out):
     """Fill ``out (K,)`` with the rows of :func:`forest._extreme_betas` (see the module docstring)."""
     K, n = vals.shape
     scratch = np.empty(n)
     for k in range(K):
-        sg = sign[k]
-        a, va = 0, sg * vals[k, 0]
-        if not math.isnan(va):  # numpy argmin: the first NaN, else the first minimum
-            for j in range(1, n):
-                v = sg * vals[k, j]
-                if math.isnan(v):
-                    a, va = j, v
-                    break
-                if v < va:
-                    a, va = j, v
-        # refine unless |va| > 2 spacing max|grad beta| + 1e-12 (NaN: refine)
-        g = _max_grad_norm(others[k], pts[k], scratch)
-        if not abs(va) > 2.0 * spacing[k] * g + 1e-12:  # NaN included
-            _, va = _pattern_min(others[k], rows[k], sg, psi[k, a], w0[k], va, offs, shrink, tol, max_rounds)
-        out[k] = sg * va
+        out[k] = _extreme_row(others[k], sign[k], vals[k], rows[k], psi[k], pts[k], spacing[k], w0[k], offs,
+                              shrink, tol, max_rounds, scratch)
 
 
 def extreme_betas_arrays(others: np.ndarray, sign: np.ndarray, vals: np.ndarray, body_rows: np.ndarray,
@@ -353,4 +362,119 @@ def extreme_betas_arrays(others: np.ndarray, sign: np.ndarray, vals: np.ndarray,
         raise ValueError("extreme_betas_arrays needs vals of shape (K, n) with n >= 1")
     _extreme_kernel(_arr(others), _arr(sign), vals, _arr(body_rows), _arr(psi), _arr(pts), _arr(spacing),
                     _arr(w0), _OFFS, _SHRINK, _TOL, _MAX_ROUNDS, out)
+    return out
+
+
+# ---------------------------------------------------------------------- relations
+#: codes of :func:`workspace_relation_codes`
+WS_INSIDE, WS_OUTSIDE, WS_COVERS, WS_CROSSES, WS_CROSSES_TWICE = 0, 1, 2, 3, 4
+#: codes of :func:`pair_relation_codes`
+PAIR_APART, PAIR_OVERLAP, PAIR_SECOND_INSIDE, PAIR_FIRST_INSIDE = 0, 1, 2, 3
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _beta_on(other, pts, out):
+    """``beta`` of packed row ``other`` at the points ``pts (n, 2)`` into ``out (n,)``."""
+    for i in range(pts.shape[0]):
+        out[i] = _beta(other, pts[i, 0], pts[i, 1])
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _ws_kernel(ws, ws_pts, idx, rows, psi, pts, spacing, w0, offs, shrink, tol, max_rounds, out):
+    n = pts.shape[1]
+    vals = np.empty(n)
+    scratch = np.empty(n)
+    wvals = np.empty(ws_pts.shape[0])
+    for r in range(idx.shape[0]):
+        k = idx[r]
+        _beta_on(ws, pts[k], vals)
+        lo, hi = np.inf, -np.inf
+        for i in range(n):  # as numpy's min / max: NaN propagates
+            lo = vals[i] if (vals[i] < lo or math.isnan(vals[i])) and not math.isnan(lo) else lo
+            hi = vals[i] if (vals[i] > hi or math.isnan(vals[i])) and not math.isnan(hi) else hi
+        code = -1
+        if hi < 0.0:
+            e = _extreme_row(ws, -1.0, vals, rows[k], psi[k], pts[k], spacing[k], w0[k], offs, shrink, tol,
+                             max_rounds, scratch)
+            if e <= 0.0:
+                code = WS_INSIDE
+        if lo > 0.0:
+            e = _extreme_row(ws, 1.0, vals, rows[k], psi[k], pts[k], spacing[k], w0[k], offs, shrink, tol,
+                             max_rounds, scratch)
+            if e > 0.0:
+                _beta_on(rows[k], ws_pts, wvals)
+                covers = True
+                for i in range(wvals.shape[0]):
+                    covers &= wvals[i] <= 0.0
+                code = WS_COVERS if covers else WS_OUTSIDE
+        if code < 0:  # circular runs of samples outside the workspace (1 if all are)
+            runs, every = 0, True
+            for i in range(n):
+                o = vals[i] > 0.0
+                every &= o
+                if o and not vals[i - 1] > 0.0:
+                    runs += 1
+            code = WS_CROSSES_TWICE if (not every and runs > 1) else WS_CROSSES
+        out[r] = code
+
+
+def workspace_relation_codes(ws_row, ws_pts, idx, rows, psi, pts, spacing, w0) -> np.ndarray:
+    """:func:`navigation.forest._workspace_relations` of the bodies ``idx`` (stacked fields
+    ``rows (N, 7)``, ``psi (N, n)``, ``pts (N, n, 2)``, ``spacing``, ``w0 (N,)``) and the
+    workspace ``ws_row (7,)`` with boundary samples ``ws_pts``: one code per body
+    (:data:`WS_INSIDE`, :data:`WS_OUTSIDE`, :data:`WS_COVERS`, :data:`WS_CROSSES`,
+    :data:`WS_CROSSES_TWICE`), the same rules and extreme-beta refinement as the numpy code."""
+    idx = _arr(idx, np.intp)
+    out = np.empty(len(idx), np.intp)
+    if len(idx):
+        _ws_kernel(_arr(ws_row).reshape(7), _arr(ws_pts).reshape(-1, 2), idx, _arr(rows), _arr(psi), _arr(pts),
+                   _arr(spacing), _arr(w0), _OFFS, _SHRINK, _TOL, _MAX_ROUNDS, out)
+    return out
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _pair_rel_kernel(I, J, rows, psi, pts, spacing, w0, contained, offs, shrink, tol, max_rounds, out):
+    n = pts.shape[1]
+    va = np.empty(n)
+    vb = np.empty(n)
+    scratch = np.empty(n)
+    for r in range(I.shape[0]):
+        a, b = I[r], J[r]
+        _beta_on(rows[b], pts[a], va)  # B's beta on A's samples
+        _beta_on(rows[a], pts[b], vb)
+        mina, minb, maxa, maxb = np.inf, np.inf, -np.inf, -np.inf
+        for i in range(n):  # as numpy's min / max: NaN propagates
+            mina = va[i] if (va[i] < mina or math.isnan(va[i])) and not math.isnan(mina) else mina
+            maxa = va[i] if (va[i] > maxa or math.isnan(va[i])) and not math.isnan(maxa) else maxa
+            minb = vb[i] if (vb[i] < minb or math.isnan(vb[i])) and not math.isnan(minb) else minb
+            maxb = vb[i] if (vb[i] > maxb or math.isnan(vb[i])) and not math.isnan(maxb) else maxb
+        over = mina < 0.0 or minb < 0.0
+        if not over:
+            over = _extreme_row(rows[b], 1.0, va, rows[a], psi[a], pts[a], spacing[a], w0[a], offs, shrink, tol,
+                                max_rounds, scratch) < 0.0
+        code = PAIR_APART
+        if over:
+            if maxb <= contained and _extreme_row(rows[a], -1.0, vb, rows[b], psi[b], pts[b], spacing[b], w0[b],
+                                                  offs, shrink, tol, max_rounds, scratch) <= contained:
+                code = PAIR_SECOND_INSIDE
+            elif maxa <= contained and _extreme_row(rows[b], -1.0, va, rows[a], psi[a], pts[a], spacing[a], w0[a],
+                                                    offs, shrink, tol, max_rounds, scratch) <= contained:
+                code = PAIR_FIRST_INSIDE
+            else:
+                code = PAIR_OVERLAP
+        out[r] = code
+
+
+def pair_relation_codes(I, J, rows, psi, pts, spacing, w0, contained: float) -> np.ndarray:
+    """:func:`navigation.forest._pair_relations` of the body pairs ``(I[r], J[r])`` (stacked
+    fields as :func:`workspace_relation_codes`, every body with the same sample count): one
+    code per pair (:data:`PAIR_APART`, :data:`PAIR_OVERLAP`, :data:`PAIR_SECOND_INSIDE`: ``J``
+    inside ``I`` up to ``contained`` in beta, :data:`PAIR_FIRST_INSIDE`), the same rules and
+    extreme-beta refinement as the numpy code."""
+    I = _arr(I, np.intp)
+    J = _arr(J, np.intp)
+    out = np.empty(len(I), np.intp)
+    if len(I):
+        _pair_rel_kernel(I, J, _arr(rows), _arr(psi), _arr(pts), _arr(spacing), _arr(w0), float(contained), _OFFS,
+                         _SHRINK, _TOL, _MAX_ROUNDS, out)
     return out

@@ -85,7 +85,9 @@ from ._geom_kernel import beta_rows, far_gap_rows, gap_bound_rows, wall_bound_ro
 from ._lp_kernel import max_min_slack
 from ._memo import Memo
 from ._pair_kernel import pair_distance
-from ._sample_kernel import extreme_betas_arrays, sample_rows
+from ._sample_kernel import (PAIR_APART, PAIR_FIRST_INSIDE, PAIR_OVERLAP, PAIR_SECOND_INSIDE, WS_COVERS, WS_CROSSES,
+                             WS_CROSSES_TWICE, WS_INSIDE, WS_OUTSIDE, pair_relation_codes,
+                             sample_rows, workspace_relation_codes)
 from .errors import ForestError
 from .geometry import (Squircle, boundary_jet_rows, clear_geometry_cache, pack, point_at_rows,
                        signed_distance_rows)
@@ -412,40 +414,6 @@ def _pair_distance(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, tol: f
     return pair_distance(bodies, I, J, tol)
 
 
-def _extreme_beta(body: _Body, other_row: np.ndarray, sign: float, vals: np.ndarray | None = None) -> float:
-    """``min`` (sign=+1) or ``max`` (sign=-1) of ``other``'s beta along ``body``'s boundary
-    (one row of :func:`_extreme_betas`)."""
-    if vals is None:
-        vals = _beta(other_row[None], body.pts[None])[0]
-    return float(_extreme_betas([body], other_row[None], np.array([sign], float), vals[None])[0])
-
-
-def _extreme_betas(bodies: Sequence[_Body], others: np.ndarray, sign: np.ndarray, vals: np.ndarray) -> np.ndarray:
-    """Per row ``k``: ``min`` (``sign[k] = +1``) or ``max`` (``-1``) of the beta of the packed
-    squircle ``others[k]`` along the boundary of ``bodies[k]``, given its values ``vals[k]`` at
-    the body's samples (all bodies with the same number of samples).
-
-    Exact when the extreme is near zero. When the sampled extreme is farther from zero than
-    beta can change between neighbouring samples (twice the sample spacing times the largest
-    gradient norm of beta over the samples), it is returned as is: only its sign is used by the
-    callers, and that sign is then certain. The other rows are refined together by a pattern
-    search on the boundary parameter. Compiled:
-    :func:`navigation._sample_kernel.extreme_betas_arrays`.
-    """
-    if len(bodies) == 0:
-        return np.empty(0)
-    return extreme_betas_arrays(others, sign, vals, np.array([b.row for b in bodies]), np.array([b.psi for b in bodies]),
-                                np.array([b.pts for b in bodies]), np.array([b.spacing for b in bodies]),
-                                np.array([b.w0 for b in bodies]))
-
-
-def _arcs_outside(values: np.ndarray) -> np.ndarray:
-    """Per row of ``values (K, n)``: the number of contiguous circular runs of ``values > 0``
-    (1 where every value is positive)."""
-    out = values > 0
-    return np.where(out.all(axis=1), 1, np.count_nonzero(out & ~np.roll(out, 1, axis=1), axis=1))
-
-
 def _max_min_slack(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarray, scale: np.ndarray, *,
                    stages: int = 4, steps: int = 10, grid: int = 5) -> tuple[np.ndarray, np.ndarray]:
     """Maximise ``t(q) = min_k (b_k - a_k . q)`` per row: the Chebyshev centre of the polygon of
@@ -642,35 +610,39 @@ def _workspace_relation(body: _Body, ws: _Body) -> str:
     return _workspace_relations([body], ws)[0]
 
 
+def _stacked(bodies: Sequence[_Body]) -> tuple[np.ndarray, ...]:
+    """The fields of ``bodies`` (all with the same sample count) stacked for the compiled
+    kernels: ``(rows (K, 7), psi (K, n), pts (K, n, 2), spacing (K,), w0 (K,))``."""
+    return (np.array([b.row for b in bodies]), np.array([b.psi for b in bodies]), np.array([b.pts for b in bodies]),
+            np.array([b.spacing for b in bodies]), np.array([b.w0 for b in bodies]))
+
+
+_WS_NAMES = {WS_INSIDE: "inside", WS_OUTSIDE: "outside", WS_COVERS: "covers", WS_CROSSES: "crosses",
+             WS_CROSSES_TWICE: "crosses-twice"}
+_PAIR_NAMES = {PAIR_APART: "", PAIR_OVERLAP: "overlap", PAIR_SECOND_INSIDE: "second-inside",
+               PAIR_FIRST_INSIDE: "first-inside"}
+
+
 def _workspace_relations(bodies: Sequence[_Body], ws: _Body) -> list[str]:
-    """:func:`_workspace_relation` of every body (memoised; the missing ones in one batch)."""
+    """:func:`_workspace_relation` of every body (memoised; the missing ones in one batch).
+
+    A body whose samples all lie inside the workspace is ``"inside"`` when the maximum of the
+    workspace's beta along its boundary (refined where the sampled extreme is near zero,
+    :func:`navigation._sample_kernel.extreme_betas_arrays`) is not positive; one whose
+    samples all lie outside is ``"outside"`` (or ``"covers"``, when every workspace sample is
+    inside it) when the minimum is positive; otherwise it crosses the boundary, twice or more
+    when its samples outside form more than one circular run. Compiled:
+    :func:`navigation._sample_kernel.workspace_relation_codes`."""
     keys = [("ws", b.sq, ws.sq) for b in bodies]
     out = _PAIRS.get_many(keys)
     todo = [k for k, r in enumerate(out) if r is None]
     if not todo:
         return out
-    sub = [bodies[k] for k in todo]
-    W = np.broadcast_to(ws.row, (len(sub), 7))
-    vals = _beta(W, np.array([b.pts for b in sub]))  # (k, n)
-    lo, hi = vals.min(axis=1), vals.max(axis=1)
-    rel = [""] * len(sub)
-    inner = np.nonzero(hi < 0)[0]
-    if inner.size:
-        ext = _extreme_betas([sub[r] for r in inner], W[inner], np.full(inner.size, -1.0), vals[inner])
-        for r, e in zip(inner, ext):
-            rel[r] = "inside" if e <= 0 else ""
-    outer = np.nonzero(lo > 0)[0]
-    if outer.size:
-        ext = _extreme_betas([sub[r] for r in outer], W[outer], np.ones(outer.size), vals[outer])
-        for r, e in zip(outer, ext):
-            if e > 0:
-                rel[r] = "covers" if np.all(_beta(sub[r].row[None], ws.pts[None])[0] <= 0) else "outside"
-    arcs = _arcs_outside(vals)
-    for r in range(len(sub)):
-        if not rel[r]:
-            rel[r] = "crosses-twice" if arcs[r] > 1 else "crosses"
-        out[todo[r]] = rel[r]
-    _PAIRS.put_many((keys[todo[r]], rel[r]) for r in range(len(sub)))
+    rows, psi, pts, spacing, w0 = _stacked([bodies[k] for k in todo])
+    codes = workspace_relation_codes(ws.row, ws.pts, np.arange(len(todo)), rows, psi, pts, spacing, w0)
+    for r, k in enumerate(todo):
+        out[k] = _WS_NAMES[int(codes[r])]
+    _PAIRS.put_many((keys[k], out[k]) for k in todo)
     return out
 
 
@@ -683,30 +655,25 @@ def _pair_relation(a: _Body, b: _Body) -> str | None:
 def _pair_relations(A: Sequence[_Body], B: Sequence[_Body]) -> list[str | None]:
     """:func:`_pair_relation` of every pair ``(A[k], B[k])`` (memoised; the missing ones in one
     batch). The overlap test is exact for convex squircles: a sample of one inside the other,
-    else the sign of the (refined) minimum of ``B``'s beta along ``A``'s boundary."""
+    else the sign of the (refined) minimum of ``B``'s beta along ``A``'s boundary; containment:
+    the (refined) maximum of one's beta along the other's boundary at most ``_CONTAINED``.
+    Compiled: :func:`navigation._sample_kernel.pair_relation_codes`."""
     keys = [("ov", a.sq, b.sq) for a, b in zip(A, B)]
     out = _PAIRS.get_many(keys)
     todo = [k for k, r in enumerate(out) if r is None]
     if todo:
-        sa, sb = [A[k] for k in todo], [B[k] for k in todo]
-        PA, PB = np.array([a.row for a in sa]), np.array([b.row for b in sb])
-        va = _beta(PB, np.array([a.pts for a in sa]))  # B's beta on A's samples
-        vb = _beta(PA, np.array([b.pts for b in sb]))
-        over = (va.min(axis=1) < 0) | (vb.min(axis=1) < 0)
-        und = np.nonzero(~over)[0]
-        if und.size:
-            over[und] = _extreme_betas([sa[r] for r in und], PB[und], np.ones(und.size), va[und]) < 0
-        rel = [""] * len(sa)
-        for r in np.nonzero(over)[0]:
-            if vb[r].max() <= _CONTAINED and _extreme_beta(sb[r], PA[r], -1.0, vb[r]) <= _CONTAINED:
-                rel[r] = "second-inside"
-            elif va[r].max() <= _CONTAINED and _extreme_beta(sa[r], PB[r], -1.0, va[r]) <= _CONTAINED:
-                rel[r] = "first-inside"
-            else:
-                rel[r] = "overlap"
+        index: dict[int, int] = {}
+        members: list[_Body] = []
+        for body in [A[k] for k in todo] + [B[k] for k in todo]:
+            if id(body) not in index:
+                index[id(body)] = len(members)
+                members.append(body)
+        I = np.array([index[id(A[k])] for k in todo], dtype=np.intp)
+        J = np.array([index[id(B[k])] for k in todo], dtype=np.intp)
+        codes = pair_relation_codes(I, J, *_stacked(members), _CONTAINED)
         for r, k in enumerate(todo):
-            out[k] = rel[r]
-        _PAIRS.put_many((keys[k], rel[r]) for r, k in enumerate(todo))
+            out[k] = _PAIR_NAMES[int(codes[r])]
+        _PAIRS.put_many((keys[k], out[k]) for k in todo)
     return [r or None for r in out]
 
 

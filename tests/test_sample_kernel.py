@@ -1,5 +1,5 @@
 """The numba kernels of navigation._sample_kernel (behind navigation.forest's ``_sample_rows`` and
-``_extreme_betas``; the samples equal Squircle.boundary_psi's whole-boundary computation to
+its relation tests; the samples equal Squircle.boundary_psi's whole-boundary computation to
 rounding, the extreme betas were bit-identical to the former numpy code on every captured build input) on
 inputs captured from real builds and random ones: samples on the boundary, evenly spaced in arc
 length; extreme betas never worse than a dense sampling where they are refined, and of the right
@@ -43,30 +43,41 @@ def _stack(bodies):
 
 @functools.lru_cache(maxsize=None)
 def _captured(name):
-    """Arguments (and results) of every ``_sample_rows`` and ``_extreme_betas`` call of a
-    cold ``build_forest`` of world ``name``."""
+    """Arguments of every ``_sample_rows`` call of a cold ``build_forest`` of world ``name``, and
+    the extreme-beta problems of its relation tests: per obstacle the workspace's beta along
+    its boundary (max and min), per pair of obstacles whose bounding discs meet the second's
+    beta along the first's boundary (min and max), as ``(others, sign, vals, rows, psi, pts,
+    spacing, w0)``."""
     world = _world(name)
-    samples, extremes = [], []
-    orig_s, orig_e = nf._sample_rows, nf._extreme_betas
+    samples = []
+    orig_s = nf._sample_rows
 
     def rec_s(P, n):
         samples.append((np.array(P), n))
         return orig_s(P, n)
 
-    def rec_e(bodies, others, sign, vals):
-        out = orig_e(bodies, others, sign, vals)
-        extremes.append((np.array(others), np.array(sign, float), np.array(vals), *_stack(bodies), out))
-        return out
-
-    nf._sample_rows, nf._extreme_betas = rec_s, rec_e
+    nf._sample_rows = rec_s
     try:
         nf.clear_cache()
         navigation.build_forest(world.workspace, world.obstacles)
+        bodies = nf._bodies(world.obstacles, nf._SAMPLES)
+        ws = nf._bodies([world.workspace], nf._WS_SAMPLES)[0]
     finally:
-        nf._sample_rows, nf._extreme_betas = orig_s, orig_e
+        nf._sample_rows = orig_s
         nf.clear_cache()
-    assert samples and extremes
-    return samples, extremes
+    assert samples
+    problems = []
+    for b in bodies:
+        problems += [(ws.row, -1.0, b), (ws.row, 1.0, b)]
+    for i, a in enumerate(bodies):
+        for b in bodies[i + 1:]:
+            if np.hypot(*(a.row[:2] - b.row[:2])) <= a.radius + b.radius:
+                problems += [(b.row, 1.0, a), (b.row, -1.0, a), (a.row, -1.0, b)]
+    others = np.array([o for o, _, _ in problems])
+    sign = np.array([g for _, g, _ in problems])
+    body = [b for _, _, b in problems]
+    vals = nf._beta(others, np.stack([b.pts for b in body]))
+    return samples, [(others, sign, vals, *_stack(body))]
 
 
 def _random_rows(rng, K, s_max=0.99, aspect_min=0.2):
@@ -208,7 +219,7 @@ def test_extreme_betas_dense_random():
 
 @pytest.mark.parametrize("name", ["office", "cluttered20", (0, 20), (5, 20)], ids=str)
 def test_extreme_betas_dense_real(name):
-    for others, sign, vals, rows, psi, pts, spacing, w0, _ in _captured(name)[1]:
+    for others, sign, vals, rows, psi, pts, spacing, w0 in _captured(name)[1]:
         got = extreme_betas_arrays(others, sign, vals, rows, psi, pts, spacing, w0)
         _check_dense(others, sign, vals, rows, pts, spacing, got)
 
@@ -257,3 +268,98 @@ def test_max_grad_norm_matches_numpy(name):
         ref = np.hypot(gx, gy).max(axis=1)
         got = np.array([_max_grad_norm(o[k], p[k], np.empty(p.shape[1])) for k in range(len(o))])
         np.testing.assert_array_equal(got, ref)
+
+
+# ---------------------------------------------------------------------- relation codes
+def _ref_workspace_codes(ws, rows, psi, pts, spacing, w0):
+    """The former numpy rules of ``forest._workspace_relations`` on stacked bodies."""
+    from navigation._sample_kernel import WS_COVERS, WS_CROSSES, WS_CROSSES_TWICE, WS_INSIDE, WS_OUTSIDE
+
+    K = len(rows)
+    W = np.broadcast_to(ws.row, (K, 7)).copy()
+    vals = nf._beta(W, pts)
+    lo, hi = vals.min(axis=1), vals.max(axis=1)
+    out = np.full(K, -1)
+    for r in range(K):
+        one = (rows[r:r + 1], psi[r:r + 1], pts[r:r + 1], spacing[r:r + 1], w0[r:r + 1])
+        if hi[r] < 0 and extreme_betas_arrays(W[r:r + 1], np.array([-1.0]), vals[r:r + 1], *one)[0] <= 0:
+            out[r] = WS_INSIDE
+        if lo[r] > 0 and extreme_betas_arrays(W[r:r + 1], np.array([1.0]), vals[r:r + 1], *one)[0] > 0:
+            covers = np.all(nf._beta(rows[r:r + 1], ws.pts[None])[0] <= 0)
+            out[r] = WS_COVERS if covers else WS_OUTSIDE
+        if out[r] < 0:
+            o = vals[r] > 0
+            runs = 1 if o.all() else np.count_nonzero(o & ~np.roll(o, 1))
+            out[r] = WS_CROSSES_TWICE if runs > 1 else WS_CROSSES
+    return out
+
+
+def _ref_pair_codes(I, J, rows, psi, pts, spacing, w0, contained=1e-12):
+    """The former numpy rules of ``forest._pair_relations`` on stacked bodies."""
+    from navigation._sample_kernel import PAIR_APART, PAIR_FIRST_INSIDE, PAIR_OVERLAP, PAIR_SECOND_INSIDE
+
+    def ext(body, other, sign, vals):
+        return extreme_betas_arrays(rows[other][None], np.array([sign]), vals[None], rows[body][None],
+                                    psi[body][None], pts[body][None], spacing[body:body + 1], w0[body:body + 1])[0]
+
+    out = []
+    for a, b in zip(I, J):
+        va = nf._beta(rows[b][None], pts[a][None])[0]
+        vb = nf._beta(rows[a][None], pts[b][None])[0]
+        over = va.min() < 0 or vb.min() < 0 or ext(a, b, 1.0, va) < 0
+        if not over:
+            out.append(PAIR_APART)
+        elif vb.max() <= contained and ext(b, a, -1.0, vb) <= contained:
+            out.append(PAIR_SECOND_INSIDE)
+        elif va.max() <= contained and ext(a, b, -1.0, va) <= contained:
+            out.append(PAIR_FIRST_INSIDE)
+        else:
+            out.append(PAIR_OVERLAP)
+    return np.array(out)
+
+
+@pytest.mark.parametrize("name", ["office", "cluttered20", (0, 20), (5, 20), (3, 50)], ids=str)
+def test_relation_codes_equal_the_numpy_rules_real(name):
+    from navigation._sample_kernel import pair_relation_codes, workspace_relation_codes
+
+    world = _world(name)
+    nf.clear_cache()
+    bodies = nf._bodies(world.obstacles, nf._SAMPLES)
+    ws = nf._bodies([world.workspace], nf._WS_SAMPLES)[0]
+    fields = nf._stacked(bodies)
+    got = workspace_relation_codes(ws.row, ws.pts, np.arange(len(bodies)), *fields)
+    np.testing.assert_array_equal(got, _ref_workspace_codes(ws, *fields))
+    I, J = np.triu_indices(len(bodies), 1)
+    near = np.hypot(*(fields[0][I, :2] - fields[0][J, :2]).T) <= np.array([b.radius for b in bodies])[I] + \
+        np.array([b.radius for b in bodies])[J] + 1e-3
+    I, J = I[near], J[near]
+    got = pair_relation_codes(I, J, *fields, 1e-12)
+    np.testing.assert_array_equal(got, _ref_pair_codes(I, J, *fields))
+    assert len(set(got.tolist())) >= 2
+
+
+def test_relation_codes_equal_the_numpy_rules_random():
+    # pairs of a squircle and a moved, turned, scaled copy (from 1e-7 to 1: touching, nearly
+    # identical, contained, apart), in both orders, and against a random workspace
+    from navigation._sample_kernel import pair_relation_codes, workspace_relation_codes
+
+    rng = np.random.default_rng(5)
+    K = 120
+    base = _random_rows(rng, K)
+    other = base.copy()
+    step = 10.0 ** rng.uniform(-7, 0, K)
+    other[:, CX:CY + 1] += step[:, None] * rng.standard_normal((K, 2))
+    other[:, 4:6] *= 1.0 + step[:, None] * rng.uniform(-1, 1, (K, 2))
+    other[K // 3:2 * K // 3, 4:6] = base[K // 3:2 * K // 3, 4:6] * 0.5  # contained halves
+    other[K // 3:2 * K // 3, CX:CY + 1] = base[K // 3:2 * K // 3, CX:CY + 1]
+    rows, psi, pts, w0, spacing = sample_rows(np.concatenate((base, other)), 256)
+    fields = (rows, psi, pts, spacing, w0)
+    I = np.concatenate((np.arange(K), np.arange(K, 2 * K)))
+    J = np.concatenate((np.arange(K, 2 * K), np.arange(K)))
+    got = pair_relation_codes(I, J, *fields, 1e-12)
+    np.testing.assert_array_equal(got, _ref_pair_codes(I, J, *fields))
+    assert len(set(got.tolist())) == 4
+    ws = nf._bodies([navigation.Squircle((0.0, 0.0), 9.0, 7.0, 0.3, 0.9)], 1024)[0]
+    got = workspace_relation_codes(ws.row, ws.pts, np.arange(2 * K), *fields)
+    np.testing.assert_array_equal(got, _ref_workspace_codes(ws, *fields))
+    assert len(set(got.tolist())) >= 3
