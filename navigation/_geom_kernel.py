@@ -610,9 +610,17 @@ def _gap_bound_kernel(A, B):
 
 
 @numba.njit(**_JIT)
-def _wall_bound_kernel(P, a, b):
-    K, n = P.shape[0], b.shape[0]
+def _wall_bound_kernel(P, v):
+    K, n = P.shape[0], v.shape[0]
     out = np.empty(K)
+    a = np.empty((n, 2))
+    b = np.empty(n)
+    for e in range(n):  # unit outward normals and offsets of the counter-clockwise polygon
+        f = e + 1 if e + 1 < n else 0
+        ex, ey = v[f, 0] - v[e, 0], v[f, 1] - v[e, 1]
+        nrm = math.sqrt(ey * ey + ex * ex)
+        a[e, 0], a[e, 1] = ey / nrm, -ex / nrm
+        b[e] = a[e, 0] * v[e, 0] + a[e, 1] * v[e, 1]
     for k in range(K):
         best = math.inf
         for u in range(4):
@@ -623,15 +631,15 @@ def _wall_bound_kernel(P, a, b):
     return out
 
 
-def wall_bound_rows(P: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Per row of ``P (K, 7)``: the smallest slack ``b_e - a_e . c`` of the corners ``c`` of its
-    bounding rectangle over the half-planes ``a (n, 2)``, ``b (n,)`` of a convex polygon (0 where
-    a corner is outside): a lower bound of the distance from the squircle to the polygon's
+def wall_bound_rows(P: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Per row of ``P (K, 7)``: the smallest slack of the corners of its bounding rectangle over
+    the edges of the convex polygon with counter-clockwise vertices ``v (n, 2)`` (0 where a
+    corner is outside): a lower bound of the distance from the squircle to the polygon's
     boundary (:func:`navigation.forest._wall_bounds`)."""
     P = _arr(P, dtype=float).reshape(-1, 7)
     if len(P) == 0:
         return np.empty(0)
-    return _wall_bound_kernel(P, _arr(a, dtype=float), _arr(b, dtype=float))
+    return _wall_bound_kernel(P, _arr(v, dtype=float).reshape(-1, 2))
 
 
 def gap_bound_rows(A: np.ndarray, B: np.ndarray) -> np.ndarray:

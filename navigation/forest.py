@@ -370,32 +370,18 @@ def _gap_bounds(P: np.ndarray) -> np.ndarray:
     return out
 
 
-def _wall_bounds(P: np.ndarray, ws: _Body, squircles: Sequence[Squircle] | None = None) -> np.ndarray:
+def _wall_bounds(P: np.ndarray, ws: _Body) -> np.ndarray:
     """Lower bounds ``(K,)`` of the distances from squircles ``P (K, 7)`` inside the workspace
-    to its boundary (memoised per squircle when ``squircles`` are given).
+    to its boundary.
 
     The polygon through every 4th boundary sample of the workspace lies inside it, so the
     distance from a point to the polygon's boundary bounds its distance to the workspace
     boundary from below; a squircle lies inside its bounding rectangle, whose distance to the
     boundary of a convex polygon containing it is the smallest slack of its corners over the
-    polygon's edges. 0 where a corner is not inside the polygon.
+    polygon's edges. 0 where a corner is not inside the polygon. Not memoised (the compiled
+    bound of 20 squircles costs less than looking them up).
     """
-    keys = [("wb", sq, ws.sq) for sq in squircles] if squircles is not None else None
-    v = np.array(_PAIRS.get_many(keys), dtype=float) if keys else np.full(len(P), np.nan)
-    todo = np.nonzero(np.isnan(v))[0]
-    if todo.size:
-        poly = _PAIRS.get(("wspoly", ws.sq))
-        if poly is None:
-            pts = ws.pts[::4]  # counter-clockwise
-            e = np.roll(pts, -1, axis=0) - pts
-            a = np.stack((e[:, 1], -e[:, 0]), axis=1)
-            a /= np.linalg.norm(a, axis=1, keepdims=True)
-            poly = (a, (a * pts).sum(-1))
-            _PAIRS.put(("wspoly", ws.sq), poly)
-        v[todo] = wall_bound_rows(P[todo], *poly)
-        if keys:
-            _PAIRS.put_many((keys[t], float(v[t])) for t in todo)
-    return v
+    return wall_bound_rows(P, ws.pts[::4])  # counter-clockwise
 
 
 def _pair_distance(bodies: Sequence[_Body], I: np.ndarray, J: np.ndarray, tol: float = 1e-12):
@@ -992,7 +978,7 @@ def _build(workspace, obstacles, min_gap, min_overlap, *, full: bool) -> Forest 
     wall_exact = np.ones(m, bool)
     inner = [a for a in range(m) if a not in set(ws_children)]
     if inner:
-        wall[inner] = _wall_bounds(rows[inner], bodies[W], [obstacles[keep[a]] for a in inner])
+        wall[inner] = _wall_bounds(rows[inner], bodies[W])
         wall_exact[inner] = False
 
     def settle_walls(idx) -> None:
