@@ -697,6 +697,20 @@ def _beta_derivatives(p: np.ndarray, qx: np.ndarray, qy: np.ndarray):
     return beta, b_x, b_y, b_xx, b_xy, b_yy
 
 
+def _beta_value(p: np.ndarray, qx: np.ndarray, qy: np.ndarray) -> np.ndarray:
+    """The ``beta`` of :func:`_beta_derivatives` without the derivatives: the same operations in
+    the same order, so the same bits (an image computed at order 0 must equal the one computed
+    with derivatives)."""
+    c, sn = p[..., COS], p[..., SIN]
+    ihw, ihh = 1.0 / p[..., HW], 1.0 / p[..., HH]
+    dx, dy = qx - p[..., CX], qy - p[..., CY]
+    x = (dx * c + dy * sn) * ihw
+    y = (dy * c - dx * sn) * ihh
+    k = 2.0 - 4.0 * p[..., S] ** 2
+    x2, y2 = x * x, y * y
+    return 0.5 * (x2 + y2 + np.sqrt(x2 * x2 + y2 * y2 + k * x2 * y2)) - 1.0
+
+
 def _root_jet(p: np.ndarray, o: np.ndarray, r0: np.ndarray, ux: Jet, uy: Jet) -> Jet:
     """Jet of the ray length ``r(u)`` defined by ``beta(o + r u) = 0``, given its value ``r0``.
 
@@ -749,10 +763,10 @@ def ray_length_center_jet(p: np.ndarray, ux: Jet, uy: Jet) -> Jet:
     """
     qx = p[..., CX] + ux.v
     qy = p[..., CY] + uy.v
+    if ux.order == 0:  # the value alone, by the same operations as _beta_derivatives
+        return Jet((1.0 / np.sqrt(_beta_value(p, qx, qy) + 1.0))[..., None])
     b, bx, by, bxx, bxy, byy = _beta_derivatives(p, qx, qy)
     r = 1.0 / np.sqrt(b + 1.0)  # the same value at every order (the goal's image must match)
-    if ux.order == 0:
-        return Jet(r[..., None])
     r3 = -0.5 * r * r * r  # d/db (b + 1)^(-1/2)
     if ux.order == 1:
         return Jet.compose2(r, r3 * bx, r3 * by, None, None, None, ux, uy)
