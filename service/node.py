@@ -32,6 +32,10 @@ Watchdog: when no valid pose, or no valid scan/points, arrived for ``watchdog`` 
 clock, counted from the start as well), the node publishes zero velocity and state ``blocked``
 with the reason, without ticking the brain; when both are fresh again it resumes.
 
+Rerun telemetry (:class:`service.viz.Telemetry`) never runs between a scan's arrival and its
+command: the tick captures what it logs, and the logging runs in the loop's idle time
+(:meth:`ServiceNode.run`).
+
 Fresh commands (``NodeConfig.refresh``, default on): the controller's speed limit
 ``v <= clearance / safety_horizon`` certifies a step that *starts at the pose the command was
 computed for*. When a tick is slow (a scan that changes the map, a loaded machine, a sped-up
@@ -80,6 +84,7 @@ log = logging.getLogger("service.node")
 DEFAULT_LISTEN = "tcp/127.0.0.1:7447"
 _JSON = zenoh.Encoding.APPLICATION_JSON
 _QUEUE = 64  # per input key; older messages are dropped first (no growing queue)
+_TELEMETRY_GRACE = 0.002  # s after a tick before deferred Rerun logging starts (see run)
 
 
 def zenoh_config(*, listen=None, connect=None, config_file=None, mode: str = "peer") -> zenoh.Config:
@@ -229,6 +234,7 @@ class ServiceNode:
         self._tasks = 0
         self._t0 = None
         self._open = False
+        self._defer_telemetry = False  # in run(): telemetry captures in the tick, logs while waiting
 
     # ------------------------------------------------------------------ lifecycle
     def __enter__(self) -> "ServiceNode":
@@ -317,23 +323,40 @@ class ServiceNode:
 
         A tick runs every ``1 / config.rate`` s, and also as soon as a scan or points message
         arrives (so a command answers a scan within one tick's compute time); the periodic
-        schedule restarts after such a tick."""
+        schedule restarts after such a tick.
+
+        With Rerun telemetry, a tick only captures what it logs; the logging runs while the
+        loop waits for the next period (``Telemetry.idle``, from 2 ms after the tick, so that
+        the command leaves first), and a scan arrival interrupts it between two pieces of it.
+        When the loop returns, everything captured is logged."""
         period = 1.0 / self.config.rate
+        tel = self.telemetry if self.telemetry is not None and self.telemetry.enabled else None
         start = time.monotonic()
         nxt = start
-        while not self._stop.is_set():
-            self._wake.clear()
-            t0 = time.monotonic()
-            self.step()
-            if until is not None and until(self):
-                break
-            now = time.monotonic()
-            if duration is not None and now - start >= duration:
-                break
-            if now - t0 > period:
-                self.stats.overruns += 1
-            nxt = t0 + period if t0 + period > now else now
-            self._wake.wait(max(0.0, nxt - now))
+        self._defer_telemetry = tel is not None
+        try:
+            while not self._stop.is_set():
+                self._wake.clear()
+                t0 = time.monotonic()
+                self.step()
+                if until is not None and until(self):
+                    break
+                now = time.monotonic()
+                if duration is not None and now - start >= duration:
+                    break
+                if now - t0 > period:
+                    self.stats.overruns += 1
+                nxt = t0 + period if t0 + period > now else now
+                if tel is not None:  # Rerun logging while waiting; a scan arrival interrupts it
+                    # first let the command leave (2 cores: logging right away delayed its delivery)
+                    if not self._wake.wait(min(_TELEMETRY_GRACE, max(0.0, nxt - now))):
+                        tel.idle(nxt, self._wake.is_set)
+                    now = time.monotonic()
+                self._wake.wait(max(0.0, nxt - now))
+        finally:
+            self._defer_telemetry = False
+            if tel is not None:
+                tel.flush_pending()
 
     def step(self) -> BrainTick | None:
         """One control period (normally called by :meth:`run`)."""
@@ -394,7 +417,8 @@ class ServiceNode:
         dt = time.perf_counter() - t_start
         self.stats.tick_times.append(dt)
         if self.telemetry is not None and self.telemetry.enabled:
-            self.telemetry.log_tick(self, scan=scan, points=points, out=out, status=self._status, compute=dt)
+            self.telemetry.log_tick(self, scan=scan, points=points, out=out, status=self._status, compute=dt,
+                                    defer=self._defer_telemetry)
         return out
 
     # ------------------------------------------------------------------ inputs

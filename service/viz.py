@@ -41,6 +41,18 @@ one (a new waypoint or a new forest after a map change). The evaluation is vecto
 ``heat_points`` grid points, ``heat_chunk`` of them per tick on the following ticks, so that
 no tick carries the whole heat map). It runs on the control thread after the command is
 published (``Telemetry.times`` / ``Telemetry.field_times`` keep the cost).
+
+Deferred logging (``log_tick(..., defer=True)``, what :meth:`service.node.ServiceNode.run`
+uses): the tick only *captures* what it must log (references to the pose, scan, command,
+status, leg, regions, obstacle estimate and field of that tick, a few microseconds); building
+the archetypes, ``rr.log`` and the navigation-function work run later in :meth:`Telemetry.idle`,
+which the control loop calls while it waits for the next period, one record or one
+navigation-function piece at a time, and which returns as soon as a scan arrives. So no Rerun
+work runs between a scan's arrival and its command, and none runs on the tick that computes the
+command. Everything captured is logged, in tick order, with the timelines of its own tick; at
+most ``max_pending`` captured ticks wait (beyond that, the oldest are logged within the tick, as
+without deferral). Without ``defer`` (a caller that drives :meth:`log_tick` itself) everything is
+logged at once, plus one navigation-function piece per tick.
 """
 
 from __future__ import annotations
@@ -109,25 +121,31 @@ class Telemetry:
     (arrow refreshes and heat-map chunks)."""
 
     def __init__(self, rec=None, *, field_period: float = 2.0, heat_points: int = 2000, heat_chunk: int = 500,
-                 arrow_grid: int = 12):
+                 arrow_grid: int = 12, max_pending: int = 50):
         self._rec = rec
         self.field_period = float(field_period)
         self.heat_points = int(heat_points)
         self.heat_chunk = max(int(heat_chunk), 1)
         self.arrow_grid = int(arrow_grid)
+        self.max_pending = max(int(max_pending), 0)
         self.times: deque = deque(maxlen=100000)
         self.field_times: deque = deque(maxlen=10000)
+        self.deferred = 0            # ticks whose logging ran in idle time (:meth:`idle`)
+        self._pending: deque = deque()  # captured ticks not logged yet
         self._field = None          # the field of the last heat map
-        self._heat_job = None       # a heat map being evaluated, ``heat_chunk`` points per tick
+        self._heat_job = None       # a heat map being evaluated, ``heat_chunk`` points per piece
+        self._arrow_job = None      # (field, pose) of an arrow refresh due
         self._field_t = -math.inf   # robot time of the last refresh
         self._heat_grid = None      # (points, step) over the workspace
+        self._workspace = None      # the world's workspace (for the heat-map grid)
         self._regions = None        # regions last logged
         self._tick = 0
         self._trail: list[tuple[float, float]] = []
         self._last_state = None
         self._last_plan = None
         self._last_leg = None
-        self._estimated_logged = False
+        self._estimated_captured = False
+        self._failed = False
 
     @property
     def enabled(self) -> bool:
@@ -184,6 +202,7 @@ class Telemetry:
 
     def close(self) -> None:
         if self._rec is not None:
+            self.flush_pending()
             try:
                 self._rec.flush(timeout_sec=5.0)
             except TypeError:
@@ -228,23 +247,103 @@ class Telemetry:
             self._rec.log("world/regions", rr.Clear(recursive=False))
 
     # ------------------------------------------------------------------ per tick
-    def log_tick(self, node, *, scan=None, points=None, out=None, status=None, compute: float = 0.0) -> None:
-        """Everything that changed in one control period of ``node`` (a ServiceNode)."""
+    def log_tick(self, node, *, scan=None, points=None, out=None, status=None, compute: float = 0.0,
+                 defer: bool = False) -> None:
+        """Everything that changed in one control period of ``node`` (a ServiceNode).
+
+        With ``defer`` the tick is only captured; :meth:`idle` (or :meth:`flush_pending`, or
+        the next ticks beyond ``max_pending``) logs it. Without, it is logged now, with one
+        piece of navigation-function work."""
         if self._rec is None:
             return
+        try:
+            self._pending.append(self._capture(node, scan, points, out, status, compute))
+        except Exception as err:  # visualisation must never take the service down
+            self._fail("tick not captured", err)
+            return
+        if not defer:
+            self.flush_pending()
+            self._nf_step()
+        else:
+            while len(self._pending) > self.max_pending:
+                self._log_next()
+
+    def idle(self, deadline: float, interrupted=None) -> bool:
+        """Deferred logging until ``time.monotonic() >= deadline`` or ``interrupted()`` is true
+        (checked between records and navigation-function pieces); the captured ticks first, in
+        order, then the navigation-function work. Returns whether nothing is left to do."""
+        if self._rec is None:
+            return True
+        while not (interrupted is not None and interrupted()) and time.monotonic() < deadline:
+            if self._pending:
+                self._log_next()
+                self.deferred += 1
+            elif not self._nf_step():
+                return True
+        return not self._pending and self._heat_job is None and self._arrow_job is None
+
+    def flush_pending(self) -> None:
+        """Log every captured tick now (navigation-function work stays pending)."""
+        while self._pending:
+            self._log_next()
+
+    @property
+    def pending(self) -> int:
+        """Captured ticks not logged yet."""
+        return len(self._pending)
+
+    def _fail(self, what: str, err: BaseException) -> None:
+        if not self._failed:
+            self._failed = True
+            log.warning("rerun: %s: %s (further errors at debug level)", what, err)
+        else:
+            log.debug("rerun: %s: %s", what, err)
+
+    def _capture(self, node, scan, points, out, status, compute) -> dict:
+        """What tick ``node`` must log, as references (the brain's state moves on)."""
+        brain = node.brain
+        pose = node.pose
+        r = {"pose": pose, "scan": scan, "points": points, "command": node.command, "compute": compute,
+             "status": status, "planning": out.compute if out is not None and out.replanned else None,
+             "obstacles": None, "leg": None, "regions": None, "field": None}
+        if scan is not None and pose is not None:
+            r["scan_pose"] = node._pose_at(scan.stamp) or pose
+        if out is not None and (out.map_changed or not self._estimated_captured):
+            self._estimated_captured = True
+            try:
+                r["obstacles"] = list(brain.obstacles())
+            except Exception as err:
+                log.debug("estimated obstacles not logged: %s", err)
+        leg_fn = getattr(brain, "leg", None)
+        if leg_fn is not None:
+            r["leg"] = leg_fn()
+        regions_fn = getattr(brain, "regions", None)
+        if regions_fn is not None:
+            r["regions"] = regions_fn()
+        field_fn = getattr(brain, "field", None)
+        if field_fn is not None and pose is not None:
+            r["field"] = (field_fn(),)  # a 1-tuple: "asked, no field" is (None,)
+            if self._workspace is None:
+                self._workspace = brain.world.workspace
+        return r
+
+    def _log_next(self) -> None:
+        r = self._pending.popleft()
         t0 = time.perf_counter()
         try:
-            self._log_tick(node, scan, points, out, status, compute)
+            self._log_record(r)
+        except Exception as err:  # visualisation must never take the service down
+            self._fail("tick not logged", err)
         finally:
             self.times.append(time.perf_counter() - t0)
 
-    def _log_tick(self, node, scan, points, out, status, compute) -> None:
+    def _log_record(self, r: dict) -> None:
         import rerun as rr
 
         rec = self._rec
         self._tick += 1
         rec.set_time("tick", sequence=self._tick)
-        pose = node.pose
+        pose = r["pose"]
         if pose is not None:
             rec.set_time("sim_time", duration=float(pose.stamp))
             rec.log("world/robot", rr.Points2D([[pose.x, pose.y]], radii=[0.05], colors=[[255, 140, 0]]),
@@ -254,30 +353,28 @@ class Telemetry:
                 self._trail.append((pose.x, pose.y))
                 if len(self._trail) > 1:
                     rec.log("world/robot/trail", rr.LineStrips2D([self._trail], colors=[[255, 140, 0]]))
+        scan, points = r["scan"], r["points"]
         if scan is not None and pose is not None:
             from perception.ingest import parse_scan
 
-            sp = node._pose_at(scan.stamp) or pose
-            pts = parse_scan(scan.message, sp.pose).points
+            pts = parse_scan(scan.message, r["scan_pose"].pose).points
             rec.log("world/lidar", rr.Points2D(pts, radii=[0.01], colors=[[255, 60, 60]]))
         elif points is not None:
             rec.log("world/lidar", rr.Points2D(points.points, radii=[0.01], colors=[[255, 60, 60]]))
-        v, w = node.command
+        v, w = r["command"]
         rec.log("plots/v", rr.Scalars(v))
         rec.log("plots/omega", rr.Scalars(w))
-        rec.log("plots/tick_ms", rr.Scalars(1e3 * compute))
-        if out is not None and out.replanned:
-            rec.log("plots/planning_ms", rr.Scalars(1e3 * out.compute))
-        if out is not None and (out.map_changed or not self._estimated_logged):
-            self._estimated_logged = True
+        rec.log("plots/tick_ms", rr.Scalars(1e3 * r["compute"]))
+        if r["planning"] is not None:
+            rec.log("plots/planning_ms", rr.Scalars(1e3 * r["planning"]))
+        if r["obstacles"] is not None:
             try:
-                est = node.brain.obstacles()
-                rec.log("world/obstacles/estimated", rr.LineStrips2D(_outlines(est), colors=[[40, 200, 90]]))
+                rec.log("world/obstacles/estimated", rr.LineStrips2D(_outlines(r["obstacles"]),
+                                                                     colors=[[40, 200, 90]]))
             except Exception as err:
                 log.debug("estimated obstacles not logged: %s", err)
-        leg_fn = getattr(node.brain, "leg", None)
-        if leg_fn is not None:
-            leg, k = leg_fn()
+        if r["leg"] is not None:
+            leg, k = r["leg"]
             key = (len(leg), k, tuple(map(tuple, leg[:1])) if leg else ())
             if key != self._last_leg:
                 self._last_leg = key
@@ -291,6 +388,7 @@ class Telemetry:
                                                       colors=[[255, 0, 200]]))
                 else:
                     rec.log("world/path", rr.Clear(recursive=True))
+        status = r["status"]
         if status is not None:
             st = (status.get("state"), status.get("message"))
             if st != self._last_state:
@@ -305,20 +403,29 @@ class Telemetry:
                         f"**prefix** {' -> '.join(p.get('prefix', []))}\n\n"
                         f"**suffix** {' -> '.join(p.get('suffix', []))}")
                 rec.log("status/plan", rr.TextDocument(text, media_type="text/markdown"))
-        regions_fn = getattr(node.brain, "regions", None)
-        if regions_fn is not None:
-            self._log_regions(regions_fn())
-        field_fn = getattr(node.brain, "field", None)
-        if field_fn is None or pose is None:
-            return
+        if r["regions"] is not None:
+            self._log_regions(r["regions"])
+        if r["field"] is not None and self._heat_job is None \
+                and float(pose.stamp) - self._field_t >= self.field_period:
+            self._arrow_job = (r["field"][0], pose)  # the newest due refresh wins
+
+    def _nf_step(self) -> bool:
+        """One piece of navigation-function work (an arrow refresh, else one heat-map chunk);
+        returns whether there was any."""
         try:
-            if self._heat_job is not None:  # one chunk of a pending heat map per tick
+            if self._arrow_job is not None:
+                fld, pose = self._arrow_job
+                self._arrow_job = None
+                self._log_field(fld, pose)
+                return True
+            if self._heat_job is not None:
                 self._heat_step()
-            elif float(pose.stamp) - self._field_t >= self.field_period:
-                self._log_field(node, field_fn(), pose)
+                return True
         except Exception as err:  # visualisation must never take the service down
             self._heat_job = None
             log.debug("navigation function not logged: %s", err)
+            return True
+        return False
 
     def _heat_step(self) -> None:
         """Evaluate the next ``heat_chunk`` grid points of the pending heat map; log it when
@@ -340,7 +447,7 @@ class Telemetry:
                                                   colors=_colormap(_ranks(job["value"][free])), draw_order=-10.0))
         self.field_times.append(time.perf_counter() - t0)
 
-    def _log_field(self, node, fld, pose) -> None:
+    def _log_field(self, fld, pose) -> None:
         """Arrows of ``fld`` around the robot and the current waypoint; a heat map of
         ``fld.nf`` queued when ``fld`` is new (see the module docstring)."""
         if fld is None:
@@ -354,8 +461,7 @@ class Telemetry:
         if fld is not self._field:
             self._field = fld
             if self._heat_grid is None:
-                ws = node.brain.world.workspace
-                pts = ws.boundary_points(_OUTLINE)
+                pts = self._workspace.boundary_points(_OUTLINE)
                 self._heat_grid = _grid(pts.min(axis=0), pts.max(axis=0), self.heat_points)
             n = len(self._heat_grid[0])
             self._heat_job = {"field": fld, "k": 0, "value": np.zeros(n), "free": np.zeros(n, bool)}

@@ -115,3 +115,80 @@ def test_regions_added_at_run_time_are_logged_again(simple_brain, tmp_path):
     later = [tk for tk, lab in logged if lab == ["a", "b", "c", "d"]]
     assert first and later, logged
     assert min(first) == 0 and min(later) > max(first), logged
+
+
+def _ticks_by_entity(rrd) -> dict:
+    """entity path -> sorted ``tick`` values of its temporal rows (static rows as -1)."""
+    from rerun.chunk import RrdReader
+
+    out: dict[str, list] = {}
+    for chunk in RrdReader(str(rrd)).stream().collect().stream():
+        batch = chunk.to_record_batch()
+        if "tick" in batch.schema.names:
+            ticks = batch.column("tick").to_pylist()
+        else:
+            ticks = [-1] * batch.num_rows
+        out.setdefault(str(chunk.entity_path), []).extend(ticks)
+    return {k: sorted(v) for k, v in out.items() if not k.startswith("/__")}
+
+
+def test_deferred_logging_waits_for_idle_time_and_records_the_same(simple_brain, tmp_path):
+    """``log_tick(defer=True)`` only captures; ``idle`` logs the captured ticks in order with
+    their own timelines, stops when interrupted, and the recording holds the same rows per
+    entity and tick as logging at once."""
+    import time
+
+    world, brain = simple_brain
+    direct, deferred = tmp_path / "direct.rrd", tmp_path / "deferred.rrd"
+    tel = Telemetry.from_options(record=direct, recording_id="test-direct")
+    tel.log_world(world)
+    _drive(brain, tel, world, 5.0)
+    tel.close()
+
+    world, brain = navigation.load_world(world_file("simple")), None
+    brain = ExecutiveBrain(world, "F a & F b", known=True)
+    tel = Telemetry.from_options(record=deferred, recording_id="test-deferred")
+    tel.log_world(world)
+    x, y, th = world.robot.start
+    for k in range(50):
+        t = k * 0.1
+        node = _node(brain, t, x, y, th)
+        out = brain.tick(node.pose, now=t)
+        tel.log_tick(node, out=out, status=out.status, compute=0.001, defer=True)
+        if k == 2:
+            assert tel.pending == 3 and not tel.times  # captured only
+            assert tel.idle(time.monotonic() + 10.0, lambda: True) is False  # a scan is waiting: nothing done
+            assert tel.pending == 3 and not tel.times
+        if k % 5 == 4:  # idle time every few ticks (as between the ticks of the control loop)
+            tel.idle(time.monotonic() + 10.0, lambda: False)
+            assert tel.pending == 0
+    assert tel.idle(time.monotonic() + 10.0) is True  # everything done
+    assert tel.deferred == 50
+    tel.close()
+    a, b = _ticks_by_entity(direct), _ticks_by_entity(deferred)
+    # the heat map completes at a different tick (chunks run in idle time, not one per tick)
+    assert len(a.pop("/world/nf")) == len(b.pop("/world/nf")) == 1
+    assert a.keys() == b.keys(), (sorted(a), sorted(b))
+    for k in a:
+        if k == "/world/field":  # arrows: same number of refreshes
+            assert len(a[k]) == len(b[k]), (k, a[k], b[k])
+        else:
+            assert a[k] == b[k], (k, a[k], b[k])
+
+
+def test_max_pending_bounds_the_backlog(simple_brain, tmp_path):
+    """Without idle time (an overloaded loop) at most ``max_pending`` ticks wait; close() logs
+    the rest."""
+    world, brain = simple_brain
+    tel = Telemetry.from_options(record=tmp_path / "b.rrd", recording_id="test-backlog")
+    tel.max_pending = 4
+    tel.log_world(world)
+    x, y, th = world.robot.start
+    for k in range(12):
+        node = _node(brain, k * 0.1, x, y, th)
+        out = brain.tick(node.pose, now=k * 0.1)
+        tel.log_tick(node, out=out, status=out.status, compute=0.001, defer=True)
+        assert tel.pending <= 4
+    assert len(tel.times) == 8
+    tel.close()
+    assert len(tel.times) == 12
