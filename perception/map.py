@@ -320,11 +320,30 @@ class ObstacleMap:
         self.last_stamp: float | None = None
         self.last_pose: tuple[float, float, float] | None = None
         self.scans = 0
+        #: world-frame returns of the last update (the workspace boundary's and those inside
+        #: the robot disc left out): what the executive's motion guard keeps the robot off
+        self.last_returns = np.zeros((0, 2))
+        self._urgent: set[int] = set()  # clusters to refit at the next update (refit_near)
         #: counters: refit triggers (``refit_new``, ``refit_merged``, ``refit_grown``,
-        #: ``refit_free``), ``forest_checks`` (calls of check_forest), ``forest_certified``
+        #: ``refit_free``, ``refit_near``), ``forest_checks`` (calls of check_forest), ``forest_certified``
         #: (forest checks found unnecessary by :meth:`_certified`), ``repairs``,
         #: ``reverts``, ``recovered`` (returns a region trim left uncovered, fitted again)
         self.stats: Counter = Counter()
+
+    def refit_near(self, q, reach: float) -> int:
+        """Refit, at the next update, the clusters of the estimates within ``reach`` of the
+        point ``q`` (the executive asks when its motion guard finds the robot about to touch a
+        return its estimates leave outside: a contradiction too small for the refit rules,
+        which wait for ``refit_tol``, but not for the robot next to it). Returns how many
+        clusters were marked."""
+        q = np.asarray(q, dtype=float).reshape(1, 2)
+        marked = 0
+        for e in self._est.values():
+            if e.cluster in self._clusters and e.cluster not in self._urgent and \
+                    float(e.squircle.distance(q)[0]) <= reach:
+                self._urgent.add(e.cluster)
+                marked += 1
+        return marked
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -481,6 +500,7 @@ class ObstacleMap:
                 keep &= np.hypot(pts[:, 0] - pose[0], pts[:, 1] - pose[1]) > self.radius
         beam_of = np.nonzero(scan.hit)[0] if scan is not None else None
         pts_k = pts[keep]
+        self.last_returns = pts_k
         if beam_of is not None:
             beam_of = beam_of[keep]
         n_trim = int((~keep).sum())
@@ -513,6 +533,10 @@ class ObstacleMap:
         touched = self._cluster_new(new_cells, scan_cell, beam_of, scan)
         # --- which clusters need a refit
         refit: set[int] = set(touched["new"]) | set(touched["merged"])
+        urgent = {lab for lab in self._urgent if lab in self._clusters} - refit
+        refit |= urgent
+        self.stats["refit_near"] += len(urgent)
+        self._urgent.clear()
         for lab in touched["new"]:
             host = self._associate(lab)
             if host is not None:  # returns of an obstacle already estimated: same cluster

@@ -214,6 +214,14 @@ class ExecutiveConfig:
         fallback tree is taken when it is more than ``detour_ratio`` times shorter (a detour
         around a narrow passage that long is not worth the wider margin). ``0`` keeps the
         first tree found (the fallback only when there is no tree at ``buffer``).
+    guard_margin : float
+        Motion guard (:meth:`Executive._guard`): a command whose next ``guard_horizon``
+        seconds would bring the robot disc closer than ``guard_margin`` to a lidar return of
+        the last scan, and closer than it already is, has its speed reduced until it does not
+        (turning is kept); the clusters of the estimates there are refitted at the next scan.
+        ``None`` disables the guard.
+    guard_horizon : float
+        Seconds of motion the guard checks (a control period at 10 Hz).
     crawl_guard : navigation.CrawlConfig or None
         Engage the controller's stand-off while the robot crawls (:mod:`navigation.tracker`:
         less than 0.1 m travelled in 3 s away from the tracked waypoint). ``None`` (the
@@ -239,11 +247,15 @@ class ExecutiveConfig:
     weight_bounds: tuple = (0.01, 1.0)
     shortcut_legs: bool = True
     detour_ratio: float = 2.0
+    guard_margin: float | None = 0.02
+    guard_horizon: float = 0.1
     crawl_guard: CrawlConfig | None = None
 
     def __post_init__(self):
-        check_numbers(self, ("buffer", "fallback_buffer", "check_margin", "blocked_timeout", "detour_ratio"),
-                      positive=False, error=TampError)
+        check_numbers(self, ("buffer", "fallback_buffer", "check_margin", "blocked_timeout", "detour_ratio",
+                             "guard_horizon"), positive=False, error=TampError)
+        if self.guard_margin is not None:
+            check_numbers(self, ("guard_margin",), positive=False, error=TampError)
         if not (isinstance(self.waypoint_tolerance, (int, float)) and self.waypoint_tolerance > 0):
             raise TampError(f"ExecutiveConfig.waypoint_tolerance must be > 0, got {self.waypoint_tolerance!r}")
         for name in ("rebuild_after", "n_orient", "n_headings", "max_plan_rounds", "stall_ticks", "refit_min_edges"):
@@ -497,6 +509,8 @@ class Executive:
         self.visited: list[str] = []
         self.map_changes = 0
         self.trees_planned = 0
+        self.guard_stops = 0  #: ticks whose speed the motion guard reduced
+        self._guard_noted = -math.inf
 
     # ------------------------------------------------------------------ public
     def request(self, formula, mode=MissionMode.REPLACE, *, regions=None) -> Plan:
@@ -1113,6 +1127,9 @@ class Executive:
         except NavigationError as err:
             self._note(f"controller refused the pose: {err}")
             return 0.0, 0.0
+        v_cmd = self._guard(p, cmd.v, cmd.omega)
+        if v_cmd != cmd.v:
+            cmd = replace(cmd, v=v_cmd)
         # stall guard: the blend of eq. 25 can cancel (the current waypoint's field asks to
         # swing around it, the following one to go on); after ``stall_ticks`` ticks without
         # motion move on to the next waypoint when close to the current one, else re-plan
@@ -1132,6 +1149,59 @@ class Executive:
             self._stalled = 0
         return cmd.v, cmd.omega
 
+
+    def _guard(self, p, v: float, w: float) -> float:
+        """The speed ``v`` (turn rate ``w``) limited so that the robot disc, over the next
+        ``guard_horizon`` seconds of the arc (checked at four points along it), comes no closer
+        than ``guard_margin`` to a lidar return of the last scan unless it is moving away from
+        them (the end of the arc no closer than now). The navigation function keeps the robot
+        off the inflated estimates, which fit the returns only to ``refit_tol``; a face seen
+        slightly outside its estimate would otherwise let the robot touch it. When the guard
+        slows the robot, the clusters of the estimates there are refitted at the next scan
+        (:meth:`perception.ObstacleMap.refit_near`)."""
+        cfg = self.config
+        if cfg.guard_margin is None or v == 0.0 or self.omap is None:
+            return v
+        pts = self.omap.last_returns
+        if not len(pts):
+            return v
+        T = cfg.guard_horizon
+        need = self.radius + cfg.guard_margin
+        x, y, th = p
+        d = np.hypot(pts[:, 0] - x, pts[:, 1] - y)
+        near = d < need + abs(v) * T + 1e-9
+        if not near.any():
+            return v
+        q, d0 = pts[near], float(d[near].min())
+
+        def worst(scale: float) -> float:
+            """Smallest distance to the near returns at four points of the arc at ``scale v``."""
+            t = T * np.array([0.25, 0.5, 0.75, 1.0])
+            vv = scale * v
+            if abs(w) > 1e-9:
+                xs = x + vv / w * (np.sin(th + w * t) - math.sin(th))
+                ys = y - vv / w * (np.cos(th + w * t) - math.cos(th))
+            else:
+                xs, ys = x + vv * t * math.cos(th), y + vv * t * math.sin(th)
+            return float(np.min(np.hypot(q[:, 0, None] - xs, q[:, 1, None] - ys)))
+
+        def ok(scale: float) -> bool:
+            m = worst(scale)
+            return m >= need or m >= d0 - 1e-12
+
+        if ok(1.0):
+            return v
+        lo, hi = 0.0, 1.0  # ok(0): no translation
+        for _ in range(8):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if ok(mid) else (lo, mid)
+        i = int(np.argmin(np.hypot(q[:, 0] - x, q[:, 1] - y)))
+        self.guard_stops += 1
+        if self.omap.refit_near(q[i], 0.1) and self.time - self._guard_noted >= 5.0:
+            self._guard_noted = self.time
+            self._note(f"motion guard: a return at ({q[i][0]:.3f}, {q[i][1]:.3f}) lies "
+                       f"{d0 - self.radius:.3f} m from the robot disc: slowed down, refitting its estimate")
+        return lo * v
 
     # ------------------------------------------------------------------ rotation weights
     def _edge_done(self, k: int) -> None:

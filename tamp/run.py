@@ -107,7 +107,8 @@ def run_mission(world, task: str | None = None, known: bool = False, seed: int =
         ``tick_cpu_median``, ``tick_cpu_p95``, ``replan_cpu_p95``, ``max_replan_cpu`` (process CPU
         s: the same figures without the time other processes take on a loaded machine),
         ``bad_commands`` (non-finite or out-of-limit commands: must be 0), ``min_clearance``,
-        ``map_changes``, ``trees_planned``, ``obstacles`` (estimates at the end), ``messages``.
+        ``map_changes``, ``trees_planned``, ``guard_stops`` (ticks the motion guard slowed),
+        ``obstacles`` (estimates at the end), ``messages``.
 
     Raises
     ------
@@ -198,6 +199,7 @@ def run_mission(world, task: str | None = None, known: bool = False, seed: int =
         "min_clearance": float(m.min_clearance),
         "map_changes": ex.map_changes,
         "trees_planned": ex.trees_planned,
+        "guard_stops": ex.guard_stops,
         "obstacles": len(ex.obstacles),
         "messages": ex.messages[-20:],
     }

@@ -15,6 +15,7 @@ import math
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from navigation.world import World
@@ -131,7 +132,12 @@ class _ScriptedMap:
     """Stands in for perception: the scans are ignored and the estimates change when told to.
 
     Only what the executive reads is provided (``update_scan``, ``estimates``, ``inflated``,
-    ``obstacles``, ``config``, ``regions``)."""
+    ``obstacles``, ``config``, ``regions``, ``last_returns``, ``refit_near``)."""
+
+    last_returns = np.zeros((0, 2))  # no returns: the motion guard has nothing to keep off
+
+    def refit_near(self, q, reach):
+        return 0
 
     def __init__(self, world: World):
         from perception.map import ObstacleMap
@@ -583,3 +589,54 @@ def test_leg_shortcuts_drop_out_and_back_waypoints_and_stay_safe():
             a = np.array([u[:2] for u, _ in skips])
             b = np.array([v[:2] for _, v in skips])
             assert rm.visible(a, b).all()
+
+
+class _Returns:
+    """A map stand-in for the motion guard: fixed returns, records ``refit_near`` calls."""
+
+    def __init__(self, pts):
+        self.last_returns = np.asarray(pts, dtype=float)
+        self.asked = []
+
+    def refit_near(self, q, reach):
+        self.asked.append((tuple(q), reach))
+        return 1
+
+
+@pytest.mark.parametrize("heading", [0.0, 0.3, -0.5])
+def test_motion_guard_keeps_the_disc_off_the_returns(heading):
+    """Issue 4/6 safety: a face seen a little outside its estimate (cluttered20: 8 mm) must not
+    be touched. Returns on the line x = 1 (a wall), the robot 2 cm from touching it and driving
+    at it: the guard slows it so that no point of the next period's arc comes closer than
+    ``guard_margin`` to a return... unless it already is, then closer than now; it keeps the
+    turn rate, leaves a command moving away untouched and asks perception to refit there."""
+    world = _open_corridor()
+    ex = Executive(world, "F b", known=True)
+    r, m = ex.radius, ex.config.guard_margin
+    ys = np.linspace(-1.0, 1.0, 401)
+    ex.omap = omap = _Returns(np.stack((np.full_like(ys, 1.0), ys), 1))
+    p = (1.0 - r - 0.02, 0.0, heading)
+    for v, w in [(0.5, 0.0), (0.5, 1.0), (0.2, -1.5)]:
+        got = ex._guard(p, v, w)
+        assert 0.0 <= got < v
+        t = np.linspace(0, ex.config.guard_horizon, 50)
+        th = heading + w * t
+        if abs(w) > 1e-9:
+            xs = p[0] + got / w * (np.sin(th) - np.sin(heading))
+        else:
+            xs = p[0] + got * t * np.cos(heading)
+        # the wall is straight: the disc's clearance is 1 - x - r
+        assert np.min(1.0 - xs - r) >= min(m, 0.02) - 2e-3
+    assert omap.asked
+    assert ex._guard(p, -0.3, 0.0) == -0.3  # backing away from the wall
+    assert ex._guard((1.0 - r - 0.02, 0.0, np.pi), 0.5, 0.0) == 0.5  # driving away
+    far = (0.0, 0.0, heading)
+    assert ex._guard(far, 0.5, 0.0) == 0.5  # nothing within reach
+
+
+def test_motion_guard_off():
+    world = _open_corridor()
+    ex = Executive(world, "F b", known=True, config=ExecutiveConfig(guard_margin=None))
+    ys = np.linspace(-1.0, 1.0, 401)
+    ex.omap = _Returns(np.stack((np.full_like(ys, 1.0), ys), 1))
+    assert ex._guard((1.0 - ex.radius - 0.005, 0.0, 0.0), 0.5, 0.0) == 0.5
