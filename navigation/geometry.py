@@ -362,15 +362,28 @@ def _unit_area(s: float) -> float:
     complete elliptic integrals of modulus ``s`` (``scipy.special.ellipk`` / ``ellipe`` take
     the parameter ``m = s^2``): ``pi`` at ``s = 0``, the unit disc, tending to 4, the square, as
     ``s -> 1``. Below ``s = 0.2`` the difference cancels (relative error ~1e-16 / s^2), so there
-    the trapezoidal rule on 4096 nodes of the smooth periodic integrand is used (spectrally
-    accurate). Scaling by the half-extents gives any squircle's area.
+    the power series is summed instead: ``1 / (1 + sqrt(1 - x)) = sum_n c_n x^(n-1)`` with
+    ``c_n = C(2n, n) / ((2n - 1) 4^n)`` and ``int_0^{pi/2} sin^(2k) = (pi / 2) C(2k, k) / 4^k``
+    give ``A = 2 pi sum_n c_n C(2n - 2, n - 1) 4^(1 - n) s^(2n - 2)`` (terms fall by ``s^2 <=
+    0.04``: about 12 terms; within 1e-15 of a 4096-node trapezoidal rule, tested). Scaling by
+    the half-extents gives any squircle's area.
     """
+    m = s * s
     if s >= 0.2:
-        m = s * s
         return float(4.0 * (ellipe(m) - (1.0 - m) * ellipk(m)) / m)
-    psi = np.linspace(0.0, 0.5 * np.pi, 4096, endpoint=False)
-    g = np.sqrt(np.maximum(1.0 - s * s * np.sin(2.0 * psi) ** 2, 0.0))
-    return float(4.0 * (0.5 * np.pi / 4096) * np.sum(1.0 / (1.0 + g)))
+    total, mp = 0.0, 1.0
+    for coeff in _AREA_SERIES:
+        term = coeff * mp
+        total += term
+        if term < 1e-18 * total:
+            break
+        mp *= m
+    return 2.0 * math.pi * total
+
+
+#: coefficients ``c_n C(2n - 2, n - 1) / 4^(n - 1)`` of :func:`_unit_area`'s series, n = 1 .. 40
+_AREA_SERIES = tuple(math.comb(2 * n, n) / ((2 * n - 1) * 4.0 ** n) * math.comb(2 * n - 2, n - 1) / 4.0 ** (n - 1)
+                     for n in range(1, 41))
 
 
 def point_at_rows(P: np.ndarray, psi: np.ndarray) -> np.ndarray:
