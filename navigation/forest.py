@@ -72,6 +72,7 @@ Symbols
 
 from __future__ import annotations
 
+import functools
 import math
 from collections import deque
 from collections.abc import Sequence
@@ -207,7 +208,7 @@ class Forest:
         if d is None:
             m = len(self.obstacles)
             d = np.zeros((m, m))
-            I, J = np.triu_indices(m, 1)
+            I, J = _triu(m)
             apart = np.array([self.parent[i] != j and self.parent[j] != i for i, j in zip(I, J)], bool)
             I, J = I[apart], J[apart]
             if I.size:
@@ -326,6 +327,14 @@ def _sample_rows(P: np.ndarray, n: int):
     return sample_rows(P, n)
 
 
+@functools.lru_cache(maxsize=64)
+def _triu(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """``np.triu_indices(n, 1)`` (read-only, memoised: numpy builds a mask each call)."""
+    I, J = np.triu_indices(n, 1)
+    I.flags.writeable = J.flags.writeable = False
+    return I, J
+
+
 def _bodies(squircles: Sequence[Squircle], n: int) -> list["_Body"]:
     """Memoised :class:`_Body` of each squircle; the missing ones are sampled in one batch."""
     out = _BODIES.get_many([(sq, n) for sq in squircles])
@@ -364,7 +373,7 @@ def _gap_bounds(P: np.ndarray) -> np.ndarray:
     costs less than looking them up."""
     K = len(P)
     out = np.zeros((K, K))
-    I, J = np.triu_indices(K, 1)
+    I, J = _triu(K)
     if I.size:
         out[I, J] = out[J, I] = _gap_bound_rows(P[I], P[J])
     return out
@@ -909,7 +918,7 @@ def _build(workspace, obstacles, min_gap, min_overlap, *, full: bool) -> Forest 
         cs = np.array([obstacles[k].center for k in live])
         rs = np.array([bodies[k].radius for k in live])
         margin = max(min_gap, 1e-9) * 2.0
-        A, B = np.triu_indices(len(live), 1)
+        A, B = _triu(len(live))
         near = np.hypot(cs[A, 0] - cs[B, 0], cs[A, 1] - cs[B, 1]) <= rs[A] + rs[B] + margin
         cand = [(live[a], live[b]) for a, b in zip(A[near].tolist(), B[near].tolist())]
         rels = _pair_relations([bodies[i] for i, _ in cand], [bodies[j] for _, j in cand])
@@ -972,7 +981,9 @@ def _build(workspace, obstacles, min_gap, min_overlap, *, full: bool) -> Forest 
             bound[A, B] = bound[B, A] = d
             exact[A, B] = exact[B, A] = True
 
-    I, J = np.nonzero(np.triu(bound < min_gap, 1))
+    I, J = _triu(m)
+    near_pairs = bound[I, J] < min_gap
+    I, J = I[near_pairs], J[near_pairs]
     settle((a, b) for a, b in zip(I, J) if (a, b) not in edge_set)
     wall = np.zeros(m)
     wall_exact = np.ones(m, bool)
