@@ -679,13 +679,7 @@ def _beta_derivatives(p: np.ndarray, qx: np.ndarray, qy: np.ndarray):
     ``qx``; used away from the centre (``x^4 + y^4 + (2 - 4s^2) x^2 y^2 > 0``). Returns
     ``(beta, b_x, b_y, b_xx, b_xy, b_yy)``.
     """
-    c, sn = p[..., COS], p[..., SIN]
-    ihw, ihh = 1.0 / p[..., HW], 1.0 / p[..., HH]
-    dx, dy = qx - p[..., CX], qy - p[..., CY]
-    x = (dx * c + dy * sn) * ihw
-    y = (dy * c - dx * sn) * ihh
-    k = 2.0 - 4.0 * p[..., S] ** 2
-    x2, y2 = x * x, y * y
+    c, sn, ihw, ihh, x, y, k, x2, y2 = _local(p, qx, qy)
     kxy = k * x * y
     d = x2 * x2 + y2 * y2 + k * x2 * y2
     root = np.sqrt(d)
@@ -714,14 +708,19 @@ def _beta_value(p: np.ndarray, qx: np.ndarray, qy: np.ndarray) -> np.ndarray:
     """The ``beta`` of :func:`_beta_derivatives` without the derivatives: the same operations in
     the same order, so the same bits (an image computed at order 0 must equal the one computed
     with derivatives)."""
+    *_, k, x2, y2 = _local(p, qx, qy)
+    return 0.5 * (x2 + y2 + np.sqrt(x2 * x2 + y2 * y2 + k * x2 * y2)) - 1.0
+
+
+def _local(p: np.ndarray, qx: np.ndarray, qy: np.ndarray):
+    """The normalised frame of :func:`_beta_derivatives` and :func:`_beta_value`: ``(cos, sin,
+    1 / hw, 1 / hh, x, y, k = 2 - 4 s^2, x^2, y^2)`` of rows ``p`` at ``(qx, qy)``."""
     c, sn = p[..., COS], p[..., SIN]
     ihw, ihh = 1.0 / p[..., HW], 1.0 / p[..., HH]
     dx, dy = qx - p[..., CX], qy - p[..., CY]
     x = (dx * c + dy * sn) * ihw
     y = (dy * c - dx * sn) * ihh
-    k = 2.0 - 4.0 * p[..., S] ** 2
-    x2, y2 = x * x, y * y
-    return 0.5 * (x2 + y2 + np.sqrt(x2 * x2 + y2 * y2 + k * x2 * y2)) - 1.0
+    return c, sn, ihw, ihh, x, y, 2.0 - 4.0 * p[..., S] ** 2, x * x, y * y
 
 
 def _root_jet(p: np.ndarray, o: np.ndarray, r0: np.ndarray, ux: Jet, uy: Jet) -> Jet:
