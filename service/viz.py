@@ -38,21 +38,22 @@ are refreshed at most every ``field_period`` seconds of robot time (default 2 s)
 each refresh (they follow the robot), the heat map only when the field changed since the last
 one (a new waypoint or a new forest after a map change). The evaluation is vectorised
 (``field.field`` on at most ``arrow_grid**2`` points; ``nf.evaluate(G, 0)`` on about
-``heat_points`` grid points, ``heat_chunk`` of them per tick on the following ticks, so that
-no tick carries the whole heat map). It runs on the control thread after the command is
-published (``Telemetry.times`` / ``Telemetry.field_times`` keep the cost).
+``heat_points`` grid points, ``heat_chunk`` of them per piece of work, so that no piece carries
+the whole heat map). ``Telemetry.times`` / ``Telemetry.field_times`` keep the cost (per logged
+tick / per piece of navigation-function work).
 
 Deferred logging (``log_tick(..., defer=True)``, what :meth:`service.node.ServiceNode.run`
 uses): the tick only *captures* what it must log (references to the pose, scan, command,
-status, leg, regions, obstacle estimate and field of that tick, a few microseconds); building
-the archetypes, ``rr.log`` and the navigation-function work run later in :meth:`Telemetry.idle`,
-which the control loop calls while it waits for the next period, one record or one
-navigation-function piece at a time, and which returns as soon as a scan arrives. So no Rerun
-work runs between a scan's arrival and its command, and none runs on the tick that computes the
-command. Everything captured is logged, in tick order, with the timelines of its own tick; at
-most ``max_pending`` captured ticks wait (beyond that, the oldest are logged within the tick, as
-without deferral). Without ``defer`` (a caller that drives :meth:`log_tick` itself) everything is
-logged at once, plus one navigation-function piece per tick.
+status, leg, regions, obstacle estimate and field of that tick, ~0.04 ms); building the
+archetypes, ``rr.log`` and the navigation-function work run later in :meth:`Telemetry.idle`,
+which the control loop calls while it waits for the next period. It does one captured tick or
+one navigation-function piece at a time (an arrow refresh or a heat-map chunk, ~1-3 ms) and
+returns as soon as a scan or points message has arrived, so no Rerun work runs on the tick that
+computes a command, and a scan that arrives meanwhile waits at most for the piece in progress.
+Everything captured is logged, in tick order, with the timelines of its own tick; at most
+``max_pending`` captured ticks wait (beyond that, the oldest are logged within the tick, as
+without deferral). Without ``defer`` (a caller that drives :meth:`log_tick` itself, as the
+tests do) each tick is logged at once, with one navigation-function piece per tick.
 """
 
 from __future__ import annotations
