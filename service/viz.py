@@ -324,8 +324,8 @@ class Telemetry:
         field_fn = getattr(brain, "field", None)
         if field_fn is not None and pose is not None:
             r["field"] = (field_fn(),)  # a 1-tuple: "asked, no field" is (None,)
-            if self._workspace is None:
-                self._workspace = brain.world.workspace
+            if self._workspace is None:  # (a brain without a world gets arrows but no heat map)
+                self._workspace = getattr(getattr(brain, "world", None), "workspace", None)
         return r
 
     def _log_next(self) -> None:
@@ -461,11 +461,12 @@ class Telemetry:
         nf = fld.nf
         if fld is not self._field:
             self._field = fld
-            if self._heat_grid is None:
+            if self._heat_grid is None and self._workspace is not None:
                 pts = self._workspace.boundary_points(_OUTLINE)
                 self._heat_grid = _grid(pts.min(axis=0), pts.max(axis=0), self.heat_points)
-            n = len(self._heat_grid[0])
-            self._heat_job = {"field": fld, "k": 0, "value": np.zeros(n), "free": np.zeros(n, bool)}
+            if self._heat_grid is not None:
+                n = len(self._heat_grid[0])
+                self._heat_job = {"field": fld, "k": 0, "value": np.zeros(n), "free": np.zeros(n, bool)}
         robot = np.array([pose.x, pose.y])
         goal = np.asarray(fld.goal, float)
         lo = np.minimum(robot, goal) - 0.5
