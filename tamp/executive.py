@@ -108,7 +108,7 @@ from navigation.potential import NavigationFunction
 from navigation.tracker import CrawlConfig, Tracker
 from navigation.world import Region, World, configuration_space, disc_violations
 from perception.errors import ScanError
-from perception.fit import inflate
+from perception.fit import inflate, radial_error
 from perception.map import ObstacleMap
 
 from .errors import InvalidRequestError, NoPlanError
@@ -169,6 +169,10 @@ class RegionError(InvalidRequestError):
         self.region = region
         self.rule = RegionRule(rule)
         super().__init__(f"regions.{region}: {message} [rule: {self.rule.value}]")
+
+
+#: a return within this radial error (m) of an estimate is covered by it (the motion guard)
+_GUARD_COVER_TOL = 0.002
 
 
 @dataclass(frozen=True, slots=True)
@@ -247,7 +251,7 @@ class ExecutiveConfig:
     weight_bounds: tuple = (0.01, 1.0)
     shortcut_legs: bool = True
     detour_ratio: float = 2.0
-    guard_margin: float | None = 0.02
+    guard_margin: float | None = 0.005
     guard_horizon: float = 0.1
     crawl_guard: CrawlConfig | None = None
 
@@ -1153,9 +1157,10 @@ class Executive:
     def _guard(self, p, v: float, w: float) -> float:
         """The speed ``v`` (turn rate ``w``) limited so that the robot disc, over the next
         ``guard_horizon`` seconds of the arc (checked at four points along it), comes no closer
-        than ``guard_margin`` to a lidar return of the last scan unless it is moving away from
-        them (the end of the arc no closer than now). The navigation function keeps the robot
-        off the inflated estimates, which fit the returns only to ``refit_tol``; a face seen
+        than ``guard_margin`` to a lidar return of the last scan that no estimate covers (its
+        radial error outside every estimate above 2 mm), unless it is moving away from them
+        (the end of the arc no closer than now). The navigation function keeps the robot off
+        the inflated estimates, which fit the returns only to ``refit_tol``; a face seen
         slightly outside its estimate would otherwise let the robot touch it. When the guard
         slows the robot, the clusters of the estimates there are refitted at the next scan
         (:meth:`perception.ObstacleMap.refit_near`)."""
@@ -1172,7 +1177,19 @@ class Executive:
         near = d < need + abs(v) * T + 1e-9
         if not near.any():
             return v
-        q, d0 = pts[near], float(d[near].min())
+        # only the returns its estimates leave outside (by more than 2 mm): the navigation
+        # function already keeps the disc off the others (they lie in an estimate, which it keeps
+        # the disc off), and a narrow passage between estimates must stay open
+        q = pts[near]
+        reach = need + abs(v) * T
+        covered = np.zeros(len(q), bool)
+        for sq in self.omap.obstacles():
+            if math.hypot(sq.center[0] - x, sq.center[1] - y) <= sq.bounding_radius + reach:
+                covered |= radial_error(sq, q) <= _GUARD_COVER_TOL
+        q = q[~covered]
+        if not len(q):
+            return v
+        d0 = float(np.min(np.hypot(q[:, 0] - x, q[:, 1] - y)))
 
         def worst(scale: float) -> float:
             """Smallest distance to the near returns at four points of the arc at ``scale v``."""

@@ -594,9 +594,13 @@ def test_leg_shortcuts_drop_out_and_back_waypoints_and_stay_safe():
 class _Returns:
     """A map stand-in for the motion guard: fixed returns, records ``refit_near`` calls."""
 
-    def __init__(self, pts):
+    def __init__(self, pts, estimates=()):
         self.last_returns = np.asarray(pts, dtype=float)
+        self.estimates_ = list(estimates)
         self.asked = []
+
+    def obstacles(self):
+        return self.estimates_
 
     def refit_near(self, q, reach):
         self.asked.append((tuple(q), reach))
@@ -632,6 +636,23 @@ def test_motion_guard_keeps_the_disc_off_the_returns(heading):
     assert ex._guard((1.0 - r - 0.02, 0.0, np.pi), 0.5, 0.0) == 0.5  # driving away
     far = (0.0, 0.0, heading)
     assert ex._guard(far, 0.5, 0.0) == 0.5  # nothing within reach
+
+
+def test_motion_guard_ignores_returns_inside_an_estimate():
+    # the same wall, covered by an estimate (its face on the returns): the navigation function
+    # keeps the robot off it; the guard must not close a narrow passage
+    from navigation.geometry import Squircle
+
+    world = _open_corridor()
+    ex = Executive(world, "F b", known=True)
+    ys = np.linspace(-1.0, 1.0, 401)
+    wall = Squircle((1.1, 0.0), 0.2, 2.4, 0.0, 0.99)
+    ex.omap = _Returns(np.stack((np.full_like(ys, 1.0), ys), 1), [wall])
+    p = (1.0 - ex.radius - 0.01, 0.0, 0.0)
+    assert ex._guard(p, 0.5, 0.0) == 0.5
+    # moved 1 cm back, the face leaves the returns 1 cm outside it: the guard acts again
+    ex.omap = _Returns(np.stack((np.full_like(ys, 1.0), ys), 1), [Squircle((1.11, 0.0), 0.2, 2.4, 0.0, 0.99)])
+    assert ex._guard(p, 0.5, 0.0) < 0.5
 
 
 def test_motion_guard_off():
