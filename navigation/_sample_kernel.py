@@ -4,11 +4,12 @@
 packed squircle row, evenly spaced in arc length (as :meth:`Squircle.boundary_psi`: arc length on
 ``8 n`` chords of the parametrisation, inverted by linear interpolation), their points, the
 search window ``w0`` (1.5 x the largest angle gap) and the sample ``spacing`` (largest chord).
-The arc length is measured on the first quarter of the boundary only (``2 n`` chords) and
-mirrored: a squircle and its parametrisation are symmetric about both local axes, so the samples
-equal those of the whole-boundary computation to rounding (~1e-15). The chords are those of the
-unit squircle (same ``s``) scaled by the half-extents; the cosines and sines of the ``2 n + 1``
-quarter-grid angles are computed once (per ``n``), not per row.
+The chords are those of the unit squircle (same ``s``) scaled by the half-extents, as in the
+numpy version; the cosines and sines of the ``8 n + 1`` grid angles are computed once (per
+``n``), not per row. (Measuring the arc length on one quarter and mirroring it, which the
+symmetry of a squircle allows, was 2.3 times faster and moved samples by ~1e-15, but that
+perturbation changed a cluttered20 mission's path onto a perception defect, see
+docs/executive.md "Motion guard": kept as it was until that is fixed.)
 
 :func:`extreme_betas_arrays` mirrors :func:`navigation.forest._extreme_betas` with its grid
 pattern search :func:`navigation.forest._pattern_min` (``m = 9``, ``shrink = 0.3``,
@@ -19,9 +20,12 @@ spacing times the largest gradient norm of beta over the samples, paper 001 eq. 
 :func:`navigation.geometry.beta_gradient_rows`), else refined by the pattern search on the
 boundary parameter (move to the best grid point if strictly better, else shrink the grid).
 
-Rows are independent: a row's result does not depend on the other rows of its batch. The
-extreme-beta formulas follow the former numpy code operation by operation (same order of
-floating-point operations), so results agree to rounding. The chord lengths use an inline
+Rows are independent: a row's result does not depend on the other rows of its batch. Formulas
+follow the former numpy code operation by operation (same order of floating-point operations),
+so results agree to rounding; the one difference is in :func:`sample_rows`' inversion of the
+arc length, which compares ``u`` with the targets directly where the numpy code compares them
+after adding ``2 k`` (row ``k`` of its batch): an index may differ by one where a target lies
+within an ulp of ``2 k`` of a node, which moves ``psi`` by an ulp-sized amount. The chord lengths use an inline
 ``hypot`` (glibc's algorithm, bit-identical to it) and the largest gradient norm computes
 ``hypot`` only where it can be the largest: both give numpy's values, faster. Kernels use
 ``error_model="numpy"``: a division by zero gives inf or NaN (as numpy) instead of raising.
@@ -49,10 +53,9 @@ _HUGE, _TINY, _EPS = 2.0 ** 511, 2.0 ** -511, 2.0 ** -54  # glibc hypot's range 
 
 @functools.lru_cache(maxsize=16)
 def _fine_grid(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The ``2 n + 1`` grid angles of :func:`sample_rows` on the quarter ``[0, pi / 2]`` (the
-    resolution of ``8 n`` chords over the whole boundary) with their cosines and sines
-    (read-only)."""
-    fine = np.linspace(0.0, 0.5 * np.pi, 2 * n + 1)
+    """The ``8 n + 1`` grid angles of :func:`sample_rows` on ``[0, 2 pi]`` with their cosines and
+    sines (numpy's, as the numpy version; read-only)."""
+    fine = np.linspace(0.0, 2 * np.pi, 8 * n + 1)
     out = (fine, np.cos(fine), np.sin(fine))
     for a in out:
         a.flags.writeable = False
@@ -164,24 +167,11 @@ def _order_by_s(P):
 @numba.njit(cache=True, error_model="numpy")
 def _sample_kernel(P, fine, cf, sf, psi, pts, w0, spacing):
     """Fill ``psi (K, n)``, ``pts (K, n, 2)``, ``w0 (K,)``, ``spacing (K,)`` of rows ``P (K, 7)``
-    from the quarter grid angles ``fine (F,)`` on ``[0, pi / 2]`` and their cosines ``cf`` and
-    sines ``sf``.
-
-    A squircle and its parametrisation are symmetric about both local axes (``psi -> pi - psi``
-    and ``psi -> -psi`` mirror the point), so the arc length is measured on the first quarter
-    only: sample ``t`` lies in quarter ``q = floor(4 t / n)`` at the quarter's arc-length
-    fraction ``x = 4 t / n - q``, mirrored (``1 - x``) in the odd quarters; its angle is
-    ``a``, ``pi - a``, ``pi + a`` or ``2 pi - a`` for the quarter angle ``a`` of that fraction,
-    and its point the mirrored point at ``a``. Quarter angles are computed once per distinct
-    fraction (``n / 4 + 1`` of them when ``4 | n``)."""
+    from the grid angles ``fine (F,)`` and their cosines ``cf`` and sines ``sf``."""
     K, n = psi.shape
     F = fine.shape[0]
     h = fine[1] - fine[0]
     ux, uy, u, seg = np.empty(F), np.empty(F), np.empty(F), np.empty(F - 1)
-    # per numerator j of the fraction x = j / n (j = 0 .. n): quarter angle and local point
-    ta, tx, ty = np.empty(n + 1), np.empty(n + 1), np.empty(n + 1)
-    done = np.empty(n + 1, np.bool_)
-    pi = math.pi
     s_prev = np.nan
     for k in _order_by_s(P):  # rows of equal s share the unit chords
         row = P[k]
@@ -195,49 +185,23 @@ def _sample_kernel(P, fine, cf, sf, psi, pts, w0, spacing):
         hw, hh = row[HW], row[HH]
         _chords(hw, hh, ux, uy, seg)
         u[0] = 0.0
-        for i in range(F - 1):  # arc length on the quarter's chords
+        for i in range(F - 1):  # arc length on the chords
             u[i + 1] = u[i] + seg[i]
         total = u[F - 1]
         for i in range(F):
             u[i] = u[i] / total
-        c, sn = row[COS], row[SIN]
-        done[:] = False
-        for t in range(n):
-            q = (4 * t) // n
-            rem = 4 * t - q * n
-            j = rem if q % 2 == 0 else n - rem
-            if not done[j]:
-                x = j / n
-                lo, hi = 0, F - 1  # last node with u <= x (binary search), linear interpolation
-                while hi - lo > 1:
-                    mid = (lo + hi) // 2
-                    if u[mid] <= x:
-                        lo = mid
-                    else:
-                        hi = mid
-                idx = min(lo, F - 2)
-                u0, u1 = u[idx], u[idx + 1]
-                frac = (x - u0) / (u1 - u0 if u1 > u0 else 1.0)
-                ang = fine[idx] + frac * h
-                ca, sa = math.cos(ang), math.sin(ang)
-                rho = _rho(s, ca, sa)
-                ta[j], tx[j], ty[j] = ang, rho * ca * hw, rho * sa * hh
-                done[j] = True
-            ang, lx, ly = ta[j], tx[j], ty[j]
-            if q == 0:
-                psi[k, t] = ang
-            elif q == 1:
-                psi[k, t] = pi - ang
-                lx = -lx
-            elif q == 2:
-                psi[k, t] = pi + ang
-                lx, ly = -lx, -ly
-            else:
-                psi[k, t] = 2.0 * pi - ang
-                ly = -ly
-            pts[k, t, 0] = row[CX] + c * lx - sn * ly
-            pts[k, t, 1] = row[CY] + sn * lx + c * ly
+        j = 0
+        for t in range(n):  # invert: last node with u <= target, linear interpolation
+            target = t / n
+            while j + 1 < F and u[j + 1] <= target:
+                j += 1
+            idx = min(j, F - 2)
+            u0, u1 = u[idx], u[idx + 1]
+            frac = (target - u0) / (u1 - u0 if u1 > u0 else 1.0)
+            psi[k, t] = fine[idx] + frac * h
         gap, chord = -np.inf, -np.inf
+        for t in range(n):
+            pts[k, t, 0], pts[k, t, 1] = _point(row, psi[k, t])
         for t in range(n):
             g = (psi[k, t + 1] if t + 1 < n else psi[k, 0] + 2.0 * np.pi) - psi[k, t]
             gap = _nanmax(gap, g)

@@ -321,7 +321,7 @@ class _Body:
 def _sample_rows(P: np.ndarray, n: int):
     """``n`` boundary angles per squircle row of ``P (K, 7)``, evenly spaced in arc length (as
     :meth:`Squircle.boundary_psi`: arc length on ``8 n`` chords, inverted by linear
-    interpolation; measured on one quarter and mirrored), their points, and per row the search window ``w0`` (1.5 x the largest
+    interpolation), their points, and per row the search window ``w0`` (1.5 x the largest
     angle gap) and the sample ``spacing`` (largest chord): ``(P, psi (K, n), pts (K, n, 2),
     w0 (K,), spacing (K,))``. Compiled: :func:`navigation._sample_kernel.sample_rows`."""
     return sample_rows(P, n)

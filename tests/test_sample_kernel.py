@@ -1,6 +1,5 @@
 """The numba kernels of navigation._sample_kernel (behind navigation.forest's ``_sample_rows`` and
-its relation tests; the samples equal Squircle.boundary_psi's whole-boundary computation to
-rounding, the extreme betas were bit-identical to the former numpy code on every captured build input) on
+its relation tests; the samples equal Squircle.boundary_psi's to rounding, the extreme betas were bit-identical to the former numpy code on every captured build input) on
 inputs captured from real builds and random ones: samples on the boundary, evenly spaced in arc
 length; extreme betas never worse than a dense sampling where they are refined, and of the right
 sign elsewhere; rows independent of their batch."""
@@ -131,9 +130,8 @@ def test_sample_rows_properties_real(name):
 
 
 @pytest.mark.parametrize("n", [256, 1024, 90, 7])
-def test_sample_rows_quarter_equals_the_whole_boundary(n):
-    # the arc length is measured on one quarter and mirrored: the angles equal those of the
-    # whole-boundary computation (Squircle.boundary_psi, 8 n chords) to rounding, for any n
+def test_sample_rows_equal_boundary_psi(n):
+    # the angles equal those of Squircle.boundary_psi (8 n chords) to rounding, for any n
     rng = np.random.default_rng(7 + n)
     P = _random_rows(rng, 40)
     P[::4, S] = 0.99
