@@ -88,7 +88,7 @@ def run(names: Sequence[str], max_time: float = 300.0) -> dict:
             "completed", "collisions", "distance", "execution_time", "planning_time", "initial_planning_time",
             "max_replan_time", "replan_p95", "replans", "tick_median", "tick_p95", "tick_max", "tick_cpu_median",
             "tick_cpu_p95", "replan_cpu_p95", "max_replan_cpu", "oscillation",
-            "bad_commands", "visited", "state", "message", "map_changes", "trees_planned")},
+            "bad_commands", "visited", "state", "message", "map_changes", "trees_planned", "guard_stops")},
                "tour": tour, "ratio": ratio, "wall": wall}
         row["pass"] = {"distance": ratio is not None and ratio <= TARGETS["distance_ratio"],
                        "synthesis": r["initial_planning_time"] <= TARGETS["synthesis"],
