@@ -334,13 +334,17 @@ class ObstacleMap:
         """Refit, at the next update, the clusters of the estimates within ``reach`` of the
         point ``q`` (the executive asks when its motion guard finds the robot about to touch a
         return its estimates leave outside: a contradiction too small for the refit rules,
-        which wait for ``refit_tol``, but not for the robot next to it). Returns how many
-        clusters were marked."""
+        which wait for ``refit_tol``, but not for the robot next to it). A cluster refitted in
+        the last ``_REFIT_LATEST`` scans is not marked again (a robot held by the guard next to
+        a return its refits cannot cover would otherwise refit it at every scan). Returns how
+        many clusters were marked."""
         q = np.asarray(q, dtype=float).reshape(1, 2)
         marked = 0
         for e in self._est.values():
-            if e.cluster in self._clusters and e.cluster not in self._urgent and \
-                    float(e.squircle.distance(q)[0]) <= reach:
+            cl = self._clusters.get(e.cluster)
+            if cl is None or e.cluster in self._urgent or self.scans - cl.last_fit < _REFIT_LATEST:
+                continue
+            if float(e.squircle.distance(q)[0]) <= reach:
                 self._urgent.add(e.cluster)
                 marked += 1
         return marked

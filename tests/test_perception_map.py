@@ -133,6 +133,39 @@ def test_updates_report_changes():
     assert seen and omap.to_message()["obstacles"]
 
 
+def test_refit_near_refits_once_then_waits():
+    """The executive's motion guard asks for a refit next to a return (refit_near): the cluster
+    of the estimate there is refitted at the next update, and not marked again until
+    ``_REFIT_LATEST`` scans later (a robot held by the guard must not refit every scan);
+    ``last_returns`` holds the update's returns (none of the workspace boundary's)."""
+    from perception.map import _REFIT_LATEST
+
+    world = shared_world("simple")
+    sim = Simulator(world, seed=0)
+    omap = ObstacleMap.from_world(world)
+    poses = tour(sim, 4, np.random.default_rng(3))
+    for k, pose in enumerate(poses[:40]):
+        msg = sim.scan_message(stamp=0.1 * k, ranges=sim.true_ranges(tuple(pose)))
+        omap.update_scan(msg, {"stamp": 0.1 * k, "x": pose[0], "y": pose[1], "theta": pose[2]})
+    assert omap.estimates and len(omap.last_returns)
+    assert np.all(-world.workspace.distance(omap.last_returns) > omap.config.ws_band - 1e-9)
+    est = next(iter(omap.estimates.values()))
+    q = np.asarray(est.squircle.center)
+    cl = omap._clusters[est.cluster]
+    cl.last_fit = omap.scans - _REFIT_LATEST + 1  # refitted recently: not marked
+    assert omap.refit_near(q, 1e-3) == 0
+    cl.last_fit = omap.scans - _REFIT_LATEST
+    assert omap.refit_near(q, 1e-3) == 1
+    assert omap.refit_near(q, 1e-3) == 0  # already marked
+    before = omap.stats["refit_near"]
+    pose = poses[39]
+    msg = sim.scan_message(stamp=4.0, ranges=sim.true_ranges(tuple(pose)))
+    omap.update_scan(msg, {"stamp": 4.0, "x": pose[0], "y": pose[1], "theta": pose[2]})
+    assert omap.stats["refit_near"] == before + 1
+    assert omap.scans - omap._clusters[est.cluster].last_fit <= 1  # refitted at that update
+    assert omap.refit_near(q, 1e-3) == 0  # and not marked again for _REFIT_LATEST scans
+
+
 def test_boundary_returns_are_dropped_by_distance():
     """Returns within ``ws_band`` of the workspace boundary (by distance, not by the radial
     error, which off the workspace's axes exceeds the distance by up to ``|q - c| / b``) are the
