@@ -135,6 +135,12 @@ def _nanmax(a: float, b: float) -> float:
     return a if math.isnan(a) or a >= b else b
 
 
+@numba.njit(cache=True, error_model="numpy")
+def _nanmin(a: float, b: float) -> float:
+    """``min(a, b)`` propagating NaN (as ``np.min``)."""
+    return a if math.isnan(a) or a <= b else b
+
+
 # ---------------------------------------------------------------------- boundary samples
 @numba.njit(cache=True, error_model="numpy")
 def _chords(hw: float, hh: float, ux, uy, seg) -> None:
@@ -354,8 +360,8 @@ def _ws_kernel(ws, ws_pts, idx, rows, psi, pts, spacing, w0, offs, shrink, tol, 
         _beta_on(ws, pts[k], vals)
         lo, hi = np.inf, -np.inf
         for i in range(n):  # as numpy's min / max: NaN propagates
-            lo = vals[i] if (vals[i] < lo or math.isnan(vals[i])) and not math.isnan(lo) else lo
-            hi = vals[i] if (vals[i] > hi or math.isnan(vals[i])) and not math.isnan(hi) else hi
+            lo = _nanmin(lo, vals[i])
+            hi = _nanmax(hi, vals[i])
         code = -1
         if hi < 0.0:
             e = _extreme_row(ws, -1.0, vals, rows[k], psi[k], pts[k], spacing[k], w0[k], offs, shrink, tol,
@@ -408,10 +414,8 @@ def _pair_rel_kernel(I, J, rows, psi, pts, spacing, w0, contained, offs, shrink,
         _beta_on(rows[a], pts[b], vb)
         mina, minb, maxa, maxb = np.inf, np.inf, -np.inf, -np.inf
         for i in range(n):  # as numpy's min / max: NaN propagates
-            mina = va[i] if (va[i] < mina or math.isnan(va[i])) and not math.isnan(mina) else mina
-            maxa = va[i] if (va[i] > maxa or math.isnan(va[i])) and not math.isnan(maxa) else maxa
-            minb = vb[i] if (vb[i] < minb or math.isnan(vb[i])) and not math.isnan(minb) else minb
-            maxb = vb[i] if (vb[i] > maxb or math.isnan(vb[i])) and not math.isnan(maxb) else maxb
+            mina, maxa = _nanmin(mina, va[i]), _nanmax(maxa, va[i])
+            minb, maxb = _nanmin(minb, vb[i]), _nanmax(maxb, vb[i])
         over = mina < 0.0 or minb < 0.0
         if not over:
             over = _extreme_row(rows[b], 1.0, va, rows[a], psi[a], pts[a], spacing[a], w0[a], offs, shrink, tol,
