@@ -1015,7 +1015,6 @@ def _build(workspace, obstacles, min_gap, min_overlap, *, full: bool) -> Forest 
                           obstacles=(keep[a], -1), rule="too-close")
 
     # --- trees, roots, parents, depths
-    area: dict[int, float] = {}
     parent = [NO_PARENT] * m
     depth = [0] * m
     tree_of = [0] * m
@@ -1037,11 +1036,9 @@ def _build(workspace, obstacles, min_gap, min_overlap, *, full: bool) -> Forest 
             ecc = {i: _eccentricity(adj, i) for i in comp}
             low = min(ecc.values())
             centre = [i for i in comp if ecc[i] == low]  # a tree's centre: one or two members
-            if len(centre) > 1:
-                for i in centre:
-                    if i not in area:  # rounded: equal shapes tie exactly, then the lower index wins
-                        area[i] = round(obstacles[keep[i]].area, 9)
-            root = min(centre, key=lambda i: (-area.get(i, 0.0), i))
+            # ties: the larger area (rounded: equal shapes tie exactly), then the lower index
+            root = centre[0] if len(centre) == 1 else \
+                min(centre, key=lambda i: (-round(obstacles[keep[i]].area, 9), i))
         roots.append(root)
         tree_of[root] = t
         orient(root, t)
