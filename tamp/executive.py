@@ -221,9 +221,9 @@ class ExecutiveConfig:
     guard_margin : float
         Motion guard (:meth:`Executive._guard`): a command whose next ``guard_horizon``
         seconds would bring the robot disc closer than ``guard_margin`` to a lidar return of
-        the last scan, and closer than it already is, has its speed reduced until it does not
-        (turning is kept); the clusters of the estimates there are refitted at the next scan.
-        ``None`` disables the guard.
+        the last scan that no estimate covers, and closer than it already is, has its speed
+        reduced until it does not (turning is kept); the clusters of the estimates there are
+        refitted at the next scan. ``None`` disables the guard.
     guard_horizon : float
         Seconds of motion the guard checks (a control period at 10 Hz).
     crawl_guard : navigation.CrawlConfig or None
@@ -1153,7 +1153,6 @@ class Executive:
             self._stalled = 0
         return cmd.v, cmd.omega
 
-
     def _guard(self, p, v: float, w: float) -> float:
         """The speed ``v`` (turn rate ``w``) limited so that the robot disc, over the next
         ``guard_horizon`` seconds of the arc (checked at four points along it), comes no closer
@@ -1172,24 +1171,25 @@ class Executive:
             return v
         T = cfg.guard_horizon
         need = self.radius + cfg.guard_margin
+        reach = need + abs(v) * T
         x, y, th = p
         d = np.hypot(pts[:, 0] - x, pts[:, 1] - y)
-        near = d < need + abs(v) * T + 1e-9
+        near = d < reach + 1e-9
         if not near.any():
             return v
         # only the returns its estimates leave outside (by more than 2 mm): the navigation
         # function already keeps the disc off the others (they lie in an estimate, which it keeps
         # the disc off), and a narrow passage between estimates must stay open
-        q = pts[near]
-        reach = need + abs(v) * T
+        q, d = pts[near], d[near]
         covered = np.zeros(len(q), bool)
         for sq in self.omap.obstacles():
             if math.hypot(sq.center[0] - x, sq.center[1] - y) <= sq.bounding_radius + reach:
                 covered |= radial_error(sq, q) <= _GUARD_COVER_TOL
-        q = q[~covered]
+        q, d = q[~covered], d[~covered]
         if not len(q):
             return v
-        d0 = float(np.min(np.hypot(q[:, 0] - x, q[:, 1] - y)))
+        i = int(np.argmin(d))  # the nearest uncovered return
+        d0 = float(d[i])
 
         def worst(scale: float) -> float:
             """Smallest distance to the near returns at four points of the arc at ``scale v``."""
@@ -1212,7 +1212,6 @@ class Executive:
         for _ in range(8):
             mid = 0.5 * (lo + hi)
             lo, hi = (mid, hi) if ok(mid) else (lo, mid)
-        i = int(np.argmin(np.hypot(q[:, 0] - x, q[:, 1] - y)))
         self.guard_stops += 1
         if self.omap.refit_near(q[i], 0.1) and self.time - self._guard_noted >= 5.0:
             self._guard_noted = self.time
