@@ -129,13 +129,13 @@ def _hypot(x: float, y: float) -> tuple[float, bool]:
     return out, x + y <= _HUGE and (ay >= _TINY or ay == 0.0)
 
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(cache=True, error_model="numpy", inline="always")
 def _nanmax(a: float, b: float) -> float:
     """``max(a, b)`` propagating NaN (as ``np.max``)."""
     return a if math.isnan(a) or a >= b else b
 
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(cache=True, error_model="numpy", inline="always")
 def _nanmin(a: float, b: float) -> float:
     """``min(a, b)`` propagating NaN (as ``np.min``)."""
     return a if math.isnan(a) or a <= b else b
