@@ -446,10 +446,16 @@ class ExactDistance:
         get separate sample counts.
     min_samples : int
         Fewest boundary samples per squircle.
+    lazy : bool
+        Fetch a squircle's samples (:func:`_sample_table`, memoised) only when a query first
+        needs it instead of all at construction. The sample counts are the same (they depend on
+        every squircle's perimeter), hence so is every result; a table that is mostly queried
+        near a few of its squircles (:class:`navigation.clearance.ClearanceBound`) then samples
+        only those.
     """
 
     def __init__(self, squircles, spacing: float = 0.005, stages: int = 4, m: int = 128, split: int | None = None,
-                 min_samples: int = 256):
+                 min_samples: int = 256, lazy: bool = False):
         self.squircles = tuple(squircles)
         self.P = pack(self.squircles) if self.squircles else np.zeros((0, 7))
         self.stages = stages
@@ -457,20 +463,41 @@ class ExactDistance:
         # groups of squircles sharing one sample count: [0, split) and [split, len) (the workspace)
         split = len(self.squircles) if split is None else split
         self._groups = []
+        self._sizes = []  # samples per squircle of each group
+        self._have = None if not lazy else np.zeros(len(self.squircles), dtype=bool)  # lazy: fetched yet
         for lo, hi in ((0, split), (split, len(self.squircles))):
             if hi <= lo:
                 continue
-            perim = max(_perimeter(sq) for sq in self.squircles[lo:hi])
+            perim = _max_perimeter(self.squircles[lo:hi])
             n = _sample_count(perim / spacing, min_samples)
+            self._sizes.append(n)
+            if lazy:
+                self._groups.append((lo, hi, np.empty((hi - lo, n)), np.empty((hi - lo, n, 2)), np.empty(hi - lo)))
+                continue
             tables = [_sample_table(sq, n) for sq in self.squircles[lo:hi]]
             psi = np.stack([t[0] for t in tables])
             pts = np.stack([t[1] for t in tables])
             self._groups.append((lo, hi, psi, pts, 0.5 * np.array([t[2] for t in tables])))
 
+    def _fetch(self, j: np.ndarray) -> None:
+        """Lazy tables: make sure the samples of the squircles ``j`` (indices) are in place."""
+        if self._have is None:
+            return
+        missing = j[~self._have[j]]
+        if not len(missing):
+            return
+        for i in np.unique(missing).tolist():
+            for (lo, hi, psi_g, pts_g, half_g), n in zip(self._groups, self._sizes):
+                if lo <= i < hi:
+                    psi, pts, arc = _sample_table(self.squircles[i], n)
+                    psi_g[i - lo], pts_g[i - lo], half_g[i - lo] = psi, pts, 0.5 * arc
+            self._have[i] = True
+
     def boundary_samples(self, i: int) -> np.ndarray:
         """Boundary samples ``(n, 2)`` of squircle ``i``."""
         for lo, hi, _, pts_g, _ in self._groups:
             if lo <= i < hi:
+                self._fetch(np.array([i]))
                 return pts_g[i - lo]
         raise IndexError(f"no squircle {i} among {len(self.squircles)}")
 
@@ -482,6 +509,7 @@ class ExactDistance:
         """
         q = np.asarray(q, dtype=float).reshape(-1, 2)
         j = np.asarray(j, dtype=np.intp).reshape(-1)
+        self._fetch(j)
         d = np.empty(len(q))
         h = np.empty(len(q))
         for lo, hi, _, pts_g, half_arc in self._groups:
@@ -498,6 +526,7 @@ class ExactDistance:
         j = np.asarray(j, dtype=np.intp).reshape(-1)
         if len(q) == 0:
             return np.empty(0)
+        self._fetch(j)
         pair, los, his = [], [], []
         for lo, hi, psi_g, pts_g, half_gap in self._groups:
             sel = np.nonzero((j >= lo) & (j < hi))[0]
@@ -614,6 +643,19 @@ def _sample_table(sq: Squircle, n: int) -> tuple[np.ndarray, np.ndarray, float]:
     for a in (psi, pts):
         a.flags.writeable = False
     return psi, pts, arc
+
+
+def _max_perimeter(squircles) -> float:
+    """``max(_perimeter(sq) for sq in squircles)``, measuring only the squircles that can have
+    the largest: :func:`_perimeter` (a polygon inscribed in a convex curve) is at most the
+    curve's perimeter, which is at most that of the bounding rectangle, ``2 (width + height)``;
+    a squircle whose rectangle's perimeter is below a measured one cannot change the maximum."""
+    best = -math.inf
+    for bound, sq in sorted(((2.0 * (sq.width + sq.height), sq) for sq in squircles), key=lambda t: -t[0]):
+        if bound * (1.0 + 1e-9) < best:
+            break
+        best = max(best, _perimeter(sq))
+    return best
 
 
 @functools.lru_cache(maxsize=8192)

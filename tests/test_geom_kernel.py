@@ -164,3 +164,29 @@ def test_sample_table_is_boundary_psi_and_its_points():
         b = np.append(psi[1:], psi[0] + 2 * np.pi)
         fine = sq.point_at(psi[:, None] + (b - psi)[:, None] * np.linspace(0, 1, 17)[None, :])
         assert arc == np.linalg.norm(np.diff(fine, axis=1), axis=-1).sum(axis=1).max() * (1.0 + 1e-6)
+
+
+def test_lazy_distance_tables_give_the_same_numbers():
+    """ExactDistance(lazy=True) samples a squircle when a query first needs it, with the sample
+    counts of the eager table: the same signed and sampled distances, bit for bit."""
+    rng = np.random.default_rng(12)
+    sqs = [Squircle(tuple(rng.uniform(-3, 3, 2)), float(rng.uniform(0.1, 3)), float(rng.uniform(0.1, 3)),
+                    float(rng.uniform(-np.pi, np.pi)), float(rng.choice([0.0, rng.uniform(0, 0.999), 0.99])))
+           for _ in range(6)] + [Squircle((0.0, 0.0), 12.0, 10.0, 0.2, 0.99)]
+    eager = G.ExactDistance(sqs, spacing=0.01, split=6, min_samples=64)
+    lazy = G.ExactDistance(sqs, spacing=0.01, split=6, min_samples=64, lazy=True)
+    for _ in range(5):
+        q = rng.uniform(-5, 5, (9, 2))
+        j = rng.integers(0, 7, 9)
+        assert np.array_equal(lazy.signed(q, j), eager.signed(q, j))
+        assert all(np.array_equal(a, b) for a, b in zip(lazy.sampled(q, j), eager.sampled(q, j)))
+    assert all(np.array_equal(lazy.boundary_samples(i), eager.boundary_samples(i)) for i in range(7))
+
+
+def test_max_perimeter_skips_only_shapes_that_cannot_be_the_largest():
+    rng = np.random.default_rng(13)
+    for _ in range(200):
+        sqs = [Squircle(tuple(rng.uniform(-3, 3, 2)), float(rng.uniform(0.01, 6)), float(rng.uniform(0.01, 6)),
+                        float(rng.uniform(-np.pi, np.pi)), float(rng.choice([0.0, rng.uniform(0, 0.999), 0.99])))
+               for _ in range(int(rng.integers(1, 12)))]
+        assert G._max_perimeter(sqs) == max(G._perimeter(sq) for sq in sqs)

@@ -196,3 +196,25 @@ def test_boundary_scan_frames_equal_separate_boundary_frames(name):
         with pytest.raises(ValueError):
             scan.frame(top * 1.5)
     assert framed >= 100 and dropped >= 3, (framed, dropped)
+
+
+def test_clearance_exact_is_the_minimum_over_every_shape():
+    """ClearanceBound.exact measures only the shapes that can be the nearest: the same number as
+    the minimum of the signed distances to every obstacle and the workspace boundary."""
+    import numpy as np
+
+    import navigation
+    from navigation.clearance import ClearanceBound
+
+    world = navigation.load_world("office")
+    forest = world.forest(world.robot.radius)
+    bound = ClearanceBound(forest.workspace, forest.obstacles)
+    full = navigation.geometry.ExactDistance(tuple(forest.obstacles) + (forest.workspace,), spacing=0.005,
+                                             split=len(forest.obstacles), min_samples=64)
+    rng = np.random.default_rng(3)
+    lo, hi = np.array(forest.workspace.center) - 6.0, np.array(forest.workspace.center) + 6.0
+    m = len(forest.obstacles)
+    for q in rng.uniform(lo, hi, (150, 2)):
+        d = full.signed(np.repeat(q[None], m + 1, axis=0), np.arange(m + 1))
+        d[m] = -d[m]
+        assert bound.exact(q) == float(d.min())
