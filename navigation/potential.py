@@ -143,6 +143,12 @@ def _beta_values(p: np.ndarray, pts: np.ndarray) -> np.ndarray:
     return 0.5 * r2 * (1.0 + np.sqrt(np.maximum(1.0 - 4.0 * p[:, 6] ** 2 * m, 0.0))) - 1.0
 
 
+#: forest -> (params, chain, point obstacles) of the default parameter rule, for the last
+#: ``_SHARED_SIZE`` forests (a forest hashes by identity; insertion order is age)
+_SHARED: dict = {}
+_SHARED_SIZE = 32
+
+
 class NavigationFunction:
     """The navigation function ``phi_NF`` of eq. (9) for a forest world and a goal.
 
@@ -190,19 +196,32 @@ class NavigationFunction:
         self._obs = pack(forest.obstacles) if len(forest.obstacles) else np.zeros((0, 7))
         self._rows = np.concatenate((self._ws, self._obs))
         self._check_goal()
-        if params is None:
-            params = self._rule(**overrides)
-        elif overrides:
-            params = replace(params, **overrides)
-        n_trees = len(forest.roots)
-        if not params.K > n_trees:
-            raise NavigationError(f"K = {params.K} must exceed the number of interior trees N = {n_trees} "
-                                  "(eq. 2: otherwise phi_P does not grow at infinity)")
-        self.params = params
-        self.chain = self._build_chain()
-        roots = np.array([forest.obstacles[j].center for j in forest.roots]).reshape(-1, 2)
-        last: SphereToPoint = self.chain.stages[-1]
-        self._points = self._image(roots, lambda x, y: last.psi(*last.outer(x, y))) if len(roots) else np.zeros((0, 2))
+        # with the parameter rule's defaults, the parameters, the chain and the point obstacles
+        # depend on the forest only: shared by every goal on one forest (_SHARED)
+        shared = params is None and not overrides
+        parts = _SHARED.get(forest) if shared else None
+        if parts is None:
+            if params is None:
+                params = self._rule(**overrides)
+            elif overrides:
+                params = replace(params, **overrides)
+            n_trees = len(forest.roots)
+            if not params.K > n_trees:
+                raise NavigationError(f"K = {params.K} must exceed the number of interior trees N = {n_trees} "
+                                      "(eq. 2: otherwise phi_P does not grow at infinity)")
+            self.params = params
+            self.chain = self._build_chain()
+            roots = np.array([forest.obstacles[j].center for j in forest.roots]).reshape(-1, 2)
+            last: SphereToPoint = self.chain.stages[-1]
+            self._points = (self._image(roots, lambda x, y: last.psi(*last.outer(x, y))) if len(roots)
+                            else np.zeros((0, 2)))
+            self._points.flags.writeable = False
+            if shared:
+                _SHARED[forest] = (self.params, self.chain, self._points)
+                if len(_SHARED) > _SHARED_SIZE:
+                    del _SHARED[next(iter(_SHARED))]  # the oldest forest
+        else:
+            self.params, self.chain, self._points = parts
         self._goal_image = self._image(self.goal[None], self.chain.apply)[0]
 
     # ------------------------------------------------------------------ construction

@@ -218,3 +218,28 @@ def test_clearance_exact_is_the_minimum_over_every_shape():
         d = full.signed(np.repeat(q[None], m + 1, axis=0), np.arange(m + 1))
         d[m] = -d[m]
         assert bound.exact(q) == float(d.min())
+
+
+def test_navigation_functions_on_one_forest_share_the_goal_free_parts():
+    """The parameters, the chain and the point obstacles depend on the forest only: a second
+    goal on the same forest reuses them, with the numbers of a function built from scratch."""
+    import numpy as np
+
+    import navigation
+    from navigation import potential
+
+    world = navigation.load_world("office")
+    forest = world.forest(world.robot.radius)
+    a = navigation.NavigationFunction(forest, goal=world.robot.start[:2])
+    goal = world.regions[sorted(world.regions)[0]].center
+    b = navigation.NavigationFunction(forest, goal=goal)
+    assert b.chain is a.chain and b.params is a.params
+    potential._SHARED.clear()
+    c = navigation.NavigationFunction(forest, goal=goal)
+    assert c.chain is not b.chain and repr(c.params) == repr(b.params)  # (nan entries: not ==)
+    q = np.array([world.robot.start[:2], goal]) + 0.05
+    for order in (0, 1, 2):
+        eb, ec = b.evaluate(q, order), c.evaluate(q, order)
+        assert all(np.array_equal(x, y) for x, y in zip((eb.value, eb.gradient, eb.hessian, eb.potential),
+                                                         (ec.value, ec.gradient, ec.hessian, ec.potential)))
+    assert np.array_equal(b.point_obstacles, c.point_obstacles) and np.array_equal(b.goal_image, c.goal_image)
