@@ -17,7 +17,10 @@ small arrays (the forest construction calls these on a few dozen rows at a time)
   distance between two squircles from their bounding rectangles and discs);
 * :func:`wall_bound_rows`: :func:`navigation.forest._wall_bounds` (lower bounds of the distance
   from a squircle to the workspace boundary from its bounding rectangle and an inscribed
-  polygon).
+  polygon);
+* :func:`boundary_points`, :func:`offset_points`: :meth:`~navigation.geometry.Squircle.boundary_points`
+  and :meth:`~navigation.geometry.Squircle.offset_points` (arc-length-even boundary samples and
+  the offset curve :meth:`~navigation.geometry.Squircle.grow` tests), bit for bit.
 
 Packed rows are ``(cx, cy, cos theta, sin theta, half width, half height, s)``
 (:func:`navigation.geometry.pack`). Every row is computed independently of the others in its
@@ -32,7 +35,7 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["point_xy", "point_xy_cs", "beta_rows", "boundary_jet", "signed_distance_rows", "ray_length_rows", "far_gap_rows", "gap_bound_rows", "wall_bound_rows", "sample_table", "refine_brackets"]
+__all__ = ["point_xy", "point_xy_cs", "beta_rows", "boundary_jet", "signed_distance_rows", "ray_length_rows", "far_gap_rows", "gap_bound_rows", "wall_bound_rows", "sample_table", "boundary_points", "offset_points", "refine_brackets"]
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -197,6 +200,95 @@ def sample_table(row: np.ndarray, n: int, sub: int = 16) -> tuple[np.ndarray, np
     psi, pts = np.empty(n), np.empty((n, 2))
     arc = _sample_table_kernel(P, int(n), int(sub), psi, pts)
     return psi, pts, float(arc)
+
+
+@numba.njit(inline="always", **_JIT)
+def _point_s2(P, s2, psi):
+    """:func:`point_xy` of row ``P[0]`` with ``s^2`` given (``s2``) and the operations in the order
+    of :meth:`navigation.geometry.Squircle.point_at`, which squares ``s`` with Python's ``**``
+    (``pow``: for about 0.1 % of the values of ``s`` one unit in the last place from ``s * s``)."""
+    ux, uy = math.cos(psi), math.sin(psi)
+    m = ux * uy
+    rho = math.sqrt(2.0 / (1.0 + math.sqrt(max(1.0 - 4.0 * s2 * m * m, 0.0))))
+    lx = rho * ux * P[0, 4]
+    ly = rho * uy * P[0, 5]
+    c, sn = P[0, 2], P[0, 3]
+    return P[0, 0] + c * lx - sn * ly, P[0, 1] + sn * lx + c * ly
+
+
+@numba.njit(**_JIT)
+def _boundary_kernel(P, s2, n, pts):
+    F = 8 * n + 1
+    step = 2.0 * math.pi / (F - 1)
+    fine = np.empty(F)
+    arc = np.empty(F)
+    arc[0] = 0.0
+    px, py = _point_s2(P, s2, 0.0)
+    fine[0] = 0.0
+    for i in range(1, F):  # numpy.linspace(0, 2 pi, F): i * step, the last exactly 2 pi
+        fine[i] = i * step if i < F - 1 else 2.0 * math.pi
+        x, y = _point_s2(P, s2, fine[i])
+        arc[i] = arc[i - 1] + math.sqrt((x - px) ** 2 + (y - py) ** 2)
+        px, py = x, y
+    total = arc[F - 1]
+    j = 0
+    for t in range(n):  # numpy.interp of numpy.linspace(0, total, n, endpoint=False)
+        target = t * (total / n)
+        while j + 1 < F - 1 and arc[j + 1] <= target:
+            j += 1
+        slope = (fine[j + 1] - fine[j]) / (arc[j + 1] - arc[j])
+        psi = slope * (target - arc[j]) + fine[j] if arc[j + 1] != arc[j] else fine[j]
+        pts[t, 0], pts[t, 1] = _point_s2(P, s2, psi)
+
+
+def boundary_points(row: np.ndarray, s2: float, n: int) -> np.ndarray:
+    """``n`` boundary points of the squircle ``row (7,)`` (``s2``: its ``s ** 2`` as Python forms
+    it) evenly spaced in arc length, by the algorithm of :func:`sample_table` with the arithmetic
+    of :meth:`navigation.geometry.Squircle.boundary_points` (the same bits)."""
+    pts = np.empty((n, 2))
+    _boundary_kernel(_arr(row).reshape(1, 7), float(s2), int(n), pts)
+    return pts
+
+
+@numba.njit(error_model="numpy", **_JIT)  # 0 / 0 at a centre is NaN, as in numpy
+def _offset_kernel(P, k4, pts, r, out):
+    cx, cy, c, s, hw, hh = P[0, 0], P[0, 1], P[0, 2], P[0, 3], P[0, 4], P[0, 5]
+    ihw, ihh = 1.0 / hw, 1.0 / hh
+    for t in range(pts.shape[0]):
+        px, py = pts[t, 0], pts[t, 1]
+        dxv, dyv = px - cx, py - cy
+        # beta_jet at order 1, column by column: the normalised coordinates (value, d/dx, d/dy)
+        u0, u1, u2 = (dxv * c + dyv * s) * ihw, (1.0 * c + 0.0 * s) * ihw, (0.0 * c + 1.0 * s) * ihw
+        w0, w1, w2 = (dyv * c - dxv * s) * ihh, (0.0 * c - 1.0 * s) * ihh, (1.0 * c - 0.0 * s) * ihh
+        du, dw = 2.0 * u0, 2.0 * w0
+        U0, U1, U2 = u0 * u0, u1 * du, u2 * du  # u.square()
+        W0, W1, W2 = w0 * w0, w1 * dw, w2 * dw
+        R0, R1, R2 = U0 + W0, U1 + W1, U2 + W2  # r2
+        dr = 2.0 * R0
+        D0 = R0 * R0 - (U0 * W0) * k4  # r2.square() - (u2 * w2) * k4
+        D1 = R1 * dr - (U1 * W0 + U0 * W1) * k4
+        D2 = R2 * dr - (U2 * W0 + U0 * W2) * k4
+        if D0 < 1e-200:  # at the centre: the root's jet is r2's
+            Q1, Q2 = R1, R2
+        else:
+            d1 = 0.5 / math.sqrt(D0)
+            Q1, Q2 = D1 * d1, D2 * d1
+        gx, gy = (R1 + Q1) * 0.5, (R2 + Q2) * 0.5
+        # b + r g / |g|
+        nrm = math.sqrt(gx * gx + gy * gy)
+        out[t, 0] = px + (r * gx) / nrm
+        out[t, 1] = py + (r * gy) / nrm
+
+
+def offset_points(row: np.ndarray, k4: float, pts: np.ndarray, r: float) -> np.ndarray:
+    """The points ``pts (n, 2)`` moved ``r`` along the unit gradient of ``beta`` of the squircle
+    ``row (7,)`` (``k4 = 4 s^2`` as :func:`navigation.geometry.beta_jet` forms it): the gradient
+    of ``beta_jet`` at order 1 and ``pts + r g / |g|`` with the same operations in the same order
+    (:meth:`navigation.geometry.Squircle.offset_points`)."""
+    pts = _arr(pts).reshape(-1, 2)
+    out = np.empty_like(pts)
+    _offset_kernel(_arr(row).reshape(1, 7), float(k4), pts, float(r), out)
+    return out
 
 
 @numba.njit(**_JIT)

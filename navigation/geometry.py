@@ -232,13 +232,10 @@ class Squircle:
         """``n`` boundary points, counter-clockwise, evenly spaced in arc length, shape ``(n, 2)``."""
         if n < 3:
             raise ValueError(f"boundary_points needs n >= 3, got {n}")
-        fine = np.linspace(0.0, 2 * np.pi, 8 * n + 1)
-        pts = self.point_at(fine)
-        seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
-        arc = np.concatenate(([0.0], np.cumsum(seg)))
-        target = np.linspace(0.0, arc[-1], n, endpoint=False)
-        psi = np.interp(target, arc, fine)
-        return self.point_at(psi)
+        # compiled (the numpy form below, operation for operation: the same bits):
+        #   fine = linspace(0, 2 pi, 8 n + 1); arc = [0, cumsum(|diff(point_at(fine))|)]
+        #   point_at(interp(linspace(0, arc[-1], n, endpoint=False), arc, fine))
+        return _geom_kernel.boundary_points(_packed_row(self), self.s ** 2, int(n))
 
     def boundary_psi(self, n: int) -> np.ndarray:
         """Normalised-frame angles of :meth:`boundary_points` (for local refinement)."""
@@ -289,8 +286,9 @@ class Squircle:
         """``n`` boundary points moved ``r`` along their outward unit normals (the offset curve
         at distance ``r``; for ``r > 0`` exactly ``r`` from the squircle), shape ``(n, 2)``."""
         b = self.boundary_points(n)
-        g = self.gradient(b)
-        return b + r * g / np.linalg.norm(g, axis=1, keepdims=True)
+        # compiled: b + r g / |g| with g = self.gradient(b) (beta_jet at order 1), the same bits
+        p = _packed_row(self)
+        return _geom_kernel.offset_points(p, 4.0 * p[..., S] ** 2, b, float(r))
 
     def _grow_uncached(self, r: float, samples: int) -> "Squircle":
         if r < 0 and -2 * r >= min(self.width, self.height):

@@ -64,4 +64,5 @@ def warm_up() -> float:
     ray_length_packed(pack(obstacles[:1]), np.array([[0.0, 0.0]]), np.array([[1.0, 0.0]]), np.ones(1, bool))
     sample_table(pack(obstacles[:1])[0], 16)  # ExactDistance's tables (clearances, the simulator)
     obstacles[-1].distance(np.array([[0.0, 0.0], [3.0, 3.0]]))  # ExactDistance's refinement
+    obstacles[-1].offset_points(0.1, 16)  # boundary points and offset curves (Squircle.grow)
     return time.perf_counter() - t0
