@@ -72,8 +72,7 @@ class ClearanceBound:
                                     lazy=True)
         self._rows = self._table.P[:m]
         self._ws = self._table.P[m:]
-        _, half = self._table.sampled(np.zeros((1, 2)), np.array([m]))
-        self._gap = float(_inside_rectangle(self._ws, self._table.boundary_samples(m)).max()) + float(half[0])
+        self._gap = _workspace_gap(workspace, spacing)
 
     def exact(self, q) -> float:
         """Exact clearance of one point ``q (2,)``: the smallest distance to an obstacle or to the
@@ -132,6 +131,16 @@ class ClearanceBound:
             bound[n, j] = refined
         d = np.where(inside, bound.min(axis=1), 0.0)
         return restore(np.maximum(d, 0.0), single)
+
+
+@functools.lru_cache(maxsize=64)
+def _workspace_gap(workspace, spacing: float) -> float:
+    """The largest distance from a boundary sample of ``workspace`` to its bounding rectangle's
+    boundary plus half the largest arc between samples (the workspace's own sample count: it is
+    a group of its own in a :class:`ClearanceBound`'s table), computed once per workspace."""
+    table = ExactDistance((workspace,), spacing=spacing, min_samples=64)
+    _, half = table.sampled(np.zeros((1, 2)), np.array([0]))
+    return float(_inside_rectangle(table.P, table.boundary_samples(0)).max()) + float(half[0])
 
 
 @functools.lru_cache(maxsize=32)

@@ -284,11 +284,10 @@ class OrientedField:
         self.mu = float(nf.params.mu)
         self._inv_k = 1.0 / float(nf.params.K)
         self._points = np.asarray(nf.point_obstacles, dtype=float).reshape(-1, 2)
-        self._pg = np.asarray(nf.goal_image, dtype=float).reshape(2)
         # Linear normalisation of the point world at the goal: x' = A (x - P_G) with
         # A = (J J^T)^(-1/2), so that A J (the Jacobian of q -> x' at the goal) is a rotation.
-        _, jac, _ = nf.transform(self.goal[None], order=1)
-        J = jac[0]
+        pg, J = nf.goal_transform()  # (one chain evaluation gives P_G and J)
+        self._pg = np.asarray(pg, dtype=float).reshape(2).copy()
         w, V = np.linalg.eigh(J @ J.T)
         A = (V / np.sqrt(w)) @ V.T
         self._A = A

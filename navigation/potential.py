@@ -222,7 +222,8 @@ class NavigationFunction:
                     del _SHARED[next(iter(_SHARED))]  # the oldest forest
         else:
             self.params, self.chain, self._points = parts
-        self._goal_image = self._image(self.goal[None], self.chain.apply)[0]
+        self._goal_image = None  # P_G, computed when first needed (_goal)
+        self._goal_jacobian = None
 
     # ------------------------------------------------------------------ construction
     def _check_goal(self):
@@ -299,7 +300,24 @@ class NavigationFunction:
     @property
     def goal_image(self) -> np.ndarray:
         """``P_G``, the goal's image in the point world."""
-        return self._goal_image.copy()
+        return self._goal().copy()
+
+    def _goal(self) -> np.ndarray:
+        """``P_G`` (computed once, by the chain at order 0 unless :meth:`goal_transform` came
+        first: the chain's values are the same at every order)."""
+        if self._goal_image is None:
+            self._goal_image = self._image(self.goal[None], self.chain.apply)[0]
+        return self._goal_image
+
+    def goal_transform(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(P_G, J)``: the goal's image and the chain's Jacobian there (:meth:`transform` at
+        order 1), computed once (an oriented field normalises its point world with them)."""
+        if self._goal_jacobian is None:
+            x, jac, _ = self.transform(self.goal[None], order=1)
+            self._goal_jacobian = jac[0]
+            if self._goal_image is None:
+                self._goal_image = x[0]
+        return self._goal_image, self._goal_jacobian
 
     def is_free(self, q) -> np.ndarray:
         """True where ``q`` lies strictly inside the workspace and outside every obstacle."""
@@ -396,7 +414,8 @@ class NavigationFunction:
             lhyy = -inv_k * (2.0 * inv - 4.0 * dy * dy * inv2).sum(1)
         else:
             lh = lhx = lhy = lhxx = lhxy = lhyy = np.zeros_like(px)
-        gx, gy = px - self._goal_image[0], py - self._goal_image[1]
+        goal = self._goal()
+        gx, gy = px - goal[0], py - goal[1]
         dg = gx * gx + gy * gy
         with np.errstate(divide="ignore"):
             phi = np.log(dg) + lh

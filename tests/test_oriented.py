@@ -243,3 +243,21 @@ def test_navigation_functions_on_one_forest_share_the_goal_free_parts():
         assert all(np.array_equal(x, y) for x, y in zip((eb.value, eb.gradient, eb.hessian, eb.potential),
                                                          (ec.value, ec.gradient, ec.hessian, ec.potential)))
     assert np.array_equal(b.point_obstacles, c.point_obstacles) and np.array_equal(b.goal_image, c.goal_image)
+
+
+def test_goal_transform_gives_the_goal_image_of_order_zero():
+    """An oriented field takes ``P_G`` from the chain at order 1 (with its Jacobian): the chain's
+    values are the same at every order, so P_G is the order-0 image, bit for bit."""
+    import numpy as np
+
+    import navigation
+
+    world = navigation.load_world("office")
+    forest = world.forest(world.robot.radius)
+    for name in sorted(world.regions):
+        goal = world.regions[name].center
+        a = navigation.NavigationFunction(forest, goal=goal)
+        b = navigation.NavigationFunction(forest, goal=goal)
+        pg, jac = b.goal_transform()
+        assert np.array_equal(pg, a.goal_image)  # (a: order 0)
+        assert np.array_equal(jac, a.transform(np.asarray(goal, dtype=float)[None], order=1)[1][0])
