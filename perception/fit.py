@@ -755,10 +755,20 @@ def _merge_runs(points: np.ndarray, parts: list[np.ndarray], cfg: PerceptionConf
     if len(parts) <= 1:
         return parts
     alive = dict(enumerate(parts))
-    trees = [cKDTree(points[p]) for p in parts]
+    trees: dict[int, cKDTree] = {}
+    lo = [points[p].min(axis=0) for p in parts]
+    hi = [points[p].max(axis=0) for p in parts]
     gap: dict[tuple[int, int], float] = {}  # a merged run's gap is the smaller of its parts'
     for a in range(len(parts)):
         for b in range(a + 1, len(parts)):
+            # runs whose bounding boxes are farther apart than ``reach`` have no pair of points
+            # within it: their gap is infinite (what the query returns), so it is not queried
+            dx = max(lo[b][0] - hi[a][0], lo[a][0] - hi[b][0], 0.0)
+            dy = max(lo[b][1] - hi[a][1], lo[a][1] - hi[b][1], 0.0)
+            if dx * dx + dy * dy > (1.001 * reach) ** 2:
+                continue
+            if a not in trees:
+                trees[a] = cKDTree(points[parts[a]])
             gap[(a, b)] = float(trees[a].query(points[parts[b]], distance_upper_bound=reach)[0].min())
     cache: dict[tuple[int, int], tuple] = {}
 

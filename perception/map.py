@@ -310,6 +310,7 @@ class ObstacleMap:
         self._sum = np.zeros(self._shape + (2,))
         self._view = np.zeros(self._shape + (2,))
         self._lab = np.full(self._shape, -1, np.int32)
+        self._box: dict[int, tuple[int, int, int, int]] = {}  # label -> its cells' window [i0, i1) x [j0, j1)
         self._free = np.zeros(self._fshape, bool)
         self._est: dict[int, Estimate] = {}
         self._clusters: dict[int, _Cluster] = {}
@@ -586,7 +587,7 @@ class ObstacleMap:
         for lab in sorted(refit):
             cl = self._clusters.get(lab)
             if cl is not None and cl.failed_at:
-                n = int(np.count_nonzero(self._lab == lab))
+                n = len(self._label_cells(lab)[0])
                 if n < 1.2 * cl.failed_at + 5:
                     continue  # its last refit was reverted: wait for more data
             self._refit(lab, proposed, changed, removed, pose)
@@ -696,6 +697,8 @@ class ObstacleMap:
                 else:
                     out["grown"].append(lab)
             self._lab[cells[:, 0], cells[:, 1]] = lab
+            self._grow_box(lab, (int(cells[:, 0].min()), int(cells[:, 0].max()) + 1,
+                                 int(cells[:, 1].min()), int(cells[:, 1].max()) + 1))
             prev = out["cells"].get(lab)
             out["cells"][lab] = cells if prev is None else np.concatenate((prev, cells))
         cells: dict[int, np.ndarray] = {}
@@ -717,10 +720,30 @@ class ObstacleMap:
             hit = _OFFSETS[k] = np.stack(np.meshgrid(r, r, indexing="ij"), axis=-1).reshape(-1, 2)
         return hit
 
+    def _grow_box(self, lab: int, box) -> None:
+        old = self._box.get(lab)
+        self._box[lab] = box if old is None else (min(old[0], box[0]), max(old[1], box[1]),
+                                                  min(old[2], box[2]), max(old[3], box[3]))
+
+    def _label_cells(self, lab: int) -> tuple[np.ndarray, np.ndarray]:
+        """``np.nonzero(self._lab == lab)`` (the same indices in the same order), searched in the
+        window of the label's cells only."""
+        box = self._box.get(lab)
+        if box is None:
+            return np.zeros(0, np.intp), np.zeros(0, np.intp)
+        i0, i1, j0, j1 = box
+        ii, jj = np.nonzero(self._lab[i0:i1, j0:j1] == lab)
+        return ii + i0, jj + j0
+
     def _merge_labels(self, keep: int, others: Iterable[int]) -> None:
         others = list(others)
-        mask = np.isin(self._lab, others)
-        self._lab[mask] = keep
+        boxes = [self._box.pop(o) for o in others if o in self._box]
+        if boxes:  # (the cells of ``others`` lie in their windows)
+            i0, i1 = min(b[0] for b in boxes), max(b[1] for b in boxes)
+            j0, j1 = min(b[2] for b in boxes), max(b[3] for b in boxes)
+            win = self._lab[i0:i1, j0:j1]
+            win[np.isin(win, others)] = keep
+            self._grow_box(keep, (i0, i1, j0, j1))
         for o in others:
             self._alias[o] = keep
             cl = self._clusters.pop(o, None)
@@ -734,7 +757,7 @@ class ObstacleMap:
         (within ``refit_tol``), if any: association of new clusters with existing estimates."""
         if not self._est:
             return None
-        idx = np.nonzero(self._lab == lab)
+        idx = self._label_cells(lab)
         q = self._sum[idx] / self._n[idx][:, None]
         best = None
         for e in self._est.values():
@@ -778,7 +801,7 @@ class ObstacleMap:
 
     def _cluster_data(self, lab: int):
         cfg = self.config
-        idx = np.nonzero(self._lab == lab)
+        idx = self._label_cells(lab)
         n = self._n[idx][:, None]
         q = self._sum[idx] / n
         v = self._view[idx]
@@ -1326,7 +1349,7 @@ class ObstacleMap:
                     if (i in proposed or i in self._est) else None
                 cl = self._clusters.get(lab) if lab is not None else None
                 if cl is not None:
-                    cl.failed_at = int(np.count_nonzero(self._lab == lab))
+                    cl.failed_at = len(self._label_cells(lab)[0])
                 if i in self._est:
                     proposed[i] = self._est[i]
                 else:

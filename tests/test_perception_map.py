@@ -357,3 +357,15 @@ def test_forest_certificate_crossing_is_sound():
             f = build_forest(ws, [sq], min_gap=cfg.min_gap, min_overlap=cfg.min_overlap)
             assert f.parent == (WORKSPACE,) and f.center_depth[0] >= cfg.min_overlap, sq
     assert certified >= 30, certified
+
+
+@pytest.mark.parametrize("name", ["simple", "random0"])
+def test_label_windows_hold_every_cell_of_their_label(name):
+    """The map finds a cluster's cells in the window of its label (``_label_cells``): after a
+    drive, every label's cells are those of ``np.nonzero(_lab == label)``, in the same order."""
+    _, omap, *_ = run(name, 0.01 if name == "random0" else 0.0, 6 if name == "random0" else 10)
+    labels = set(np.unique(omap._lab).tolist()) - {-1}
+    assert labels and labels <= set(omap._box)
+    for lab in labels | set(omap._box):
+        got, ref = omap._label_cells(lab), np.nonzero(omap._lab == lab)
+        assert all(np.array_equal(a, b) for a, b in zip(got, ref))
