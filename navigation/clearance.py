@@ -81,8 +81,8 @@ class ClearanceBound:
 
         At a point outside every obstacle and inside the workspace only the obstacles that can
         be the nearest are measured: those whose bounding rectangle is no farther than the
-        smallest upper bound on a distance (the workspace's bounding rectangle; an obstacle's
-        centre distance less its inscribed radius) plus 1e-6 m. Every other obstacle's computed
+        smallest upper bound on a distance (the workspace's bounding rectangle; for an obstacle,
+        the distance to its boundary point towards its centre) plus 1e-6 m. Every other obstacle's computed
         distance (at least its rectangle's, less rounding) exceeds the result, so the minimum is
         the same number as over all of them."""
         p = np.asarray(q, dtype=float).reshape(1, 2)
@@ -91,13 +91,14 @@ class ClearanceBound:
         if m:
             u, w = _local(self._rows, p)
             u, w = u[0], w[0]
-            if (beta_rows(self._rows, p[0, 0], p[0, 1]) > 0.0).all() and beta_rows(self._ws[0], p[0, 0], p[0, 1]) < 0.0:
+            b = beta_rows(self._rows, p[0, 0], p[0, 1])
+            if (b > 0.0).all() and beta_rows(self._ws[0], p[0, 0], p[0, 1]) < 0.0:
                 ex = np.maximum(np.abs(u) - self._rows[:, 4], 0.0)
                 ey = np.maximum(np.abs(w) - self._rows[:, 5], 0.0)
                 lower = np.sqrt(ex * ex + ey * ey)
-                # outside a squircle (star-shaped about its centre) the boundary point towards
-                # the centre is at most |q - c| - inscribed radius away
-                upper = np.hypot(u, w) - np.minimum(self._rows[:, 4], self._rows[:, 5])
+                # outside a squircle the boundary point on the segment to its centre c is
+                # c + (q - c) / g, g = sqrt(beta + 1) the squircle's gauge (a norm about c)
+                upper = np.hypot(u, w) * (1.0 - 1.0 / np.sqrt(b + 1.0))
                 best = min(float(upper.min()), float(_inside_rectangle(self._ws, p)[0, 0]))
                 k = np.append(np.nonzero(lower <= best + 1e-6)[0], m)
         d = self._table.signed(np.repeat(p, len(k), axis=0), k)
