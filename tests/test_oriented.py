@@ -261,3 +261,31 @@ def test_goal_transform_gives_the_goal_image_of_order_zero():
         pg, jac = b.goal_transform()
         assert np.array_equal(pg, a.goal_image)  # (a: order 0)
         assert np.array_equal(jac, a.transform(np.asarray(goal, dtype=float)[None], order=1)[1][0])
+
+
+def test_repeated_chain_and_clearance_queries_return_fresh_copies_of_the_same_numbers():
+    """Chain.apply and ClearanceBound keep their last answers (two fields of one forest are asked
+    at the same point): a repeated query gives the same numbers, in arrays of its own."""
+    import numpy as np
+
+    import navigation
+    from navigation._jet import Jet
+    from navigation.clearance import forest_clearance
+
+    world = navigation.load_world("office")
+    forest = world.forest(world.robot.radius)
+    nf = navigation.NavigationFunction(forest, goal=world.robot.start[:2])
+    q = np.array([[world.robot.start[0] + 0.3, world.robot.start[1] + 0.1]])
+    x1, y1 = nf.chain.apply(*Jet.variables(q, 2))
+    ref = (x1.a.copy(), y1.a.copy())
+    x1.a[:] = 0.0  # a caller's change must not reach the kept answer
+    x2, y2 = nf.chain.apply(*Jet.variables(q, 2))
+    assert np.array_equal(x2.a, ref[0]) and np.array_equal(y2.a, ref[1])
+    x3, _ = nf.chain.apply(*Jet.variables(q, 1))  # another order: computed
+    assert x3.a.shape[-1] == 3 and np.array_equal(x3.a[:, 0], ref[0][:, 0])
+    bound = forest_clearance(forest)
+    pts = np.array([[world.robot.start[0], world.robot.start[1]], [1.0, 1.0]])
+    a = bound(pts, 0.5)
+    a_ref = a.copy()
+    a[:] = -1.0
+    assert np.array_equal(bound(pts, 0.5), a_ref) and bound(pts[0], 0.5) == a_ref[0]
