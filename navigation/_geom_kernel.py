@@ -20,7 +20,8 @@ small arrays (the forest construction calls these on a few dozen rows at a time)
   polygon);
 * :func:`boundary_points`, :func:`offset_points`: :meth:`~navigation.geometry.Squircle.boundary_points`
   and :meth:`~navigation.geometry.Squircle.offset_points` (arc-length-even boundary samples and
-  the offset curve :meth:`~navigation.geometry.Squircle.grow` tests), bit for bit.
+  the offset curve :meth:`~navigation.geometry.Squircle.grow` tests), bit for bit: the
+  operations of the numpy code in its order, its cosines and sines computed by numpy.
 
 Packed rows are ``(cx, cy, cos theta, sin theta, half width, half height, s)``
 (:func:`navigation.geometry.pack`). Every row is computed independently of the others in its
@@ -202,52 +203,93 @@ def sample_table(row: np.ndarray, n: int, sub: int = 16) -> tuple[np.ndarray, np
     return psi, pts, float(arc)
 
 
-@numba.njit(inline="always", **_JIT)
-def _point_s2(P, s2, psi):
-    """:func:`point_xy` of row ``P[0]`` with ``s^2`` given (``s2``) and the operations in the order
-    of :meth:`navigation.geometry.Squircle.point_at`, which squares ``s`` with Python's ``**``
-    (``pow``: for about 0.1 % of the values of ``s`` one unit in the last place from ``s * s``)."""
-    ux, uy = math.cos(psi), math.sin(psi)
-    m = ux * uy
-    rho = math.sqrt(2.0 / (1.0 + math.sqrt(max(1.0 - 4.0 * s2 * m * m, 0.0))))
-    lx = rho * ux * P[0, 4]
-    ly = rho * uy * P[0, 5]
-    c, sn = P[0, 2], P[0, 3]
-    return P[0, 0] + c * lx - sn * ly, P[0, 1] + sn * lx + c * ly
+@numba.njit(**_JIT)
+def _points_cs(P, s2, ux, uy, out):
+    """:meth:`navigation.geometry.Squircle.point_at` of row ``P[0]`` at the angles with cosines
+    ``ux`` and sines ``uy`` into ``out``, with ``s^2`` given (``s2``: ``point_at`` squares ``s``
+    with Python's ``**``, i.e. ``pow``, for about 0.1 % of the values of ``s`` one unit in the
+    last place from ``s * s``) and the operations in ``point_at``'s order."""
+    cx, cy, c, sn, hw, hh = P[0, 0], P[0, 1], P[0, 2], P[0, 3], P[0, 4], P[0, 5]
+    for i in range(len(ux)):
+        m = ux[i] * uy[i]
+        rho = math.sqrt(2.0 / (1.0 + math.sqrt(max(1.0 - 4.0 * s2 * m * m, 0.0))))
+        lx = rho * ux[i] * hw
+        ly = rho * uy[i] * hh
+        out[i, 0] = cx + c * lx - sn * ly
+        out[i, 1] = cy + sn * lx + c * ly
 
 
 @numba.njit(**_JIT)
-def _boundary_kernel(P, s2, n, pts):
-    F = 8 * n + 1
-    step = 2.0 * math.pi / (F - 1)
-    fine = np.empty(F)
+def _arc_psi_kernel(P, s2, fine, fc, fs, n):
+    """The angles of ``Squircle.boundary_points`` (up to its final ``point_at``): arc length over
+    the boundary points of the ``fine`` grid (cosines ``fc``, sines ``fs``) as
+    ``concatenate(([0], cumsum(norm(diff(pts)))))``, inverted at ``linspace(0, arc[-1], n,
+    endpoint=False)`` as ``np.interp`` does."""
+    F = len(fine)
+    pts = np.empty((F, 2))
+    _points_cs(P, s2, fc, fs, pts)
     arc = np.empty(F)
     arc[0] = 0.0
-    px, py = _point_s2(P, s2, 0.0)
-    fine[0] = 0.0
-    for i in range(1, F):  # numpy.linspace(0, 2 pi, F): i * step, the last exactly 2 pi
-        fine[i] = i * step if i < F - 1 else 2.0 * math.pi
-        x, y = _point_s2(P, s2, fine[i])
-        arc[i] = arc[i - 1] + math.sqrt((x - px) ** 2 + (y - py) ** 2)
-        px, py = x, y
-    total = arc[F - 1]
+    for k in range(1, F):
+        dx = pts[k, 0] - pts[k - 1, 0]
+        dy = pts[k, 1] - pts[k - 1, 1]
+        seg = math.sqrt(dx * dx + dy * dy)
+        arc[k] = seg if k == 1 else arc[k - 1] + seg
+    last = arc[F - 1]
+    step = last / n
+    psi = np.empty(n)
     j = 0
-    for t in range(n):  # numpy.interp of numpy.linspace(0, total, n, endpoint=False)
-        target = t * (total / n)
-        while j + 1 < F - 1 and arc[j + 1] <= target:
+    for i in range(n):
+        if step == 0.0:  # np.linspace's branch for a zero step
+            x = (i / n) * last + 0.0
+        else:
+            x = i * step + 0.0
+        if math.isnan(x):
+            psi[i] = x
+            continue
+        if x < arc[0]:  # np.interp outside the samples
+            psi[i] = fine[0]
+            continue
+        if x > arc[F - 1]:
+            psi[i] = fine[F - 1]
+            continue
+        while j + 1 < F and arc[j + 1] <= x:  # the last sample <= x (the targets increase)
             j += 1
-        slope = (fine[j + 1] - fine[j]) / (arc[j + 1] - arc[j])
-        psi = slope * (target - arc[j]) + fine[j] if arc[j + 1] != arc[j] else fine[j]
-        pts[t, 0], pts[t, 1] = _point_s2(P, s2, psi)
+        if j == F - 1:
+            psi[i] = fine[j]
+        elif arc[j] == x:
+            psi[i] = fine[j]
+        else:
+            slope = (fine[j + 1] - fine[j]) / (arc[j + 1] - arc[j])
+            r = slope * (x - arc[j]) + fine[j]
+            if math.isnan(r):
+                r = slope * (x - arc[j + 1]) + fine[j + 1]
+                if math.isnan(r) and fine[j] == fine[j + 1]:
+                    r = fine[j]
+            psi[i] = r
+    return psi
+
+
+_FINE: dict = {}  # n -> the fine grid of boundary_points and numpy's cosines and sines of it
 
 
 def boundary_points(row: np.ndarray, s2: float, n: int) -> np.ndarray:
-    """``n`` boundary points of the squircle ``row (7,)`` (``s2``: its ``s ** 2`` as Python forms
-    it) evenly spaced in arc length, by the algorithm of :func:`sample_table` with the arithmetic
-    of :meth:`navigation.geometry.Squircle.boundary_points` (the same bits)."""
-    pts = np.empty((n, 2))
-    _boundary_kernel(_arr(row).reshape(1, 7), float(s2), int(n), pts)
-    return pts
+    """:meth:`navigation.geometry.Squircle.boundary_points` of the squircle ``row (7,)`` (``s2``:
+    its ``s ** 2`` as Python forms it), bit for bit. The cosines and sines stay numpy's (those of
+    the fine grid depend only on ``n`` and are cached; those of the interpolated angles are
+    numpy's between the two kernels), as in :func:`perception._shape_kernel.boundary_points`."""
+    n = int(n)
+    hit = _FINE.get(n)
+    if hit is None:
+        if len(_FINE) >= 32:
+            _FINE.clear()
+        fine = np.linspace(0.0, 2 * np.pi, 8 * n + 1)
+        hit = _FINE[n] = (fine, np.cos(fine), np.sin(fine))
+    P = _arr(row).reshape(1, 7)
+    psi = _arc_psi_kernel(P, float(s2), hit[0], hit[1], hit[2], n)
+    out = np.empty((n, 2))
+    _points_cs(P, float(s2), np.cos(psi), np.sin(psi), out)
+    return out
 
 
 @numba.njit(error_model="numpy", **_JIT)  # 0 / 0 at a centre is NaN, as in numpy
