@@ -27,7 +27,9 @@ as the numpy code it mirrors, so its results are bit-identical (tested in
 * :func:`component_labels`: ``scipy.sparse.csgraph.connected_components`` of an edge list by
   union-find, the same labels (scipy's ``coo_matrix`` and graph checks cost more than the
   search on the small graphs of a cluster);
-* :func:`distance_weights`: :func:`perception.fit._distance_weights`.
+* :func:`distance_weights`: :func:`perception.fit._distance_weights`;
+* :func:`free_cells`: the cells a scan's beams cross (``ObstacleMap._mark_free``: the same
+  products, sums, divisions and floors per sample; the cosines and sines are numpy's).
 """
 
 from __future__ import annotations
@@ -470,8 +472,39 @@ def distance_weights(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     return _distance_weights_kernel(_arr(p), _arr(q))
 
 
+@numba.njit(**_JIT)
+def _free_cells_kernel(a0, a1, t, L, c, sn, cell, rows, cols, flat, out):
+    count = 0
+    for b in range(len(L)):
+        for k in range(len(t)):
+            if not t[k] < L[b]:
+                continue
+            i = math.floor((a0 + t[k] * c[b]) / cell)
+            j = math.floor((a1 + t[k] * sn[b]) / cell)
+            if i >= 0 and j >= 0 and i < rows and j < cols:
+                lin = i * cols + j
+                if not flat[lin]:
+                    out[count] = lin
+                    count += 1
+    return count
+
+
+def free_cells(a0: float, a1: float, t: np.ndarray, L: np.ndarray, c: np.ndarray, sn: np.ndarray, cell: float,
+               shape, flat: np.ndarray) -> np.ndarray:
+    """The linear indices (unsorted, repeated) of the cells not yet free (``flat`` False) that the
+    samples ``t (K,)`` along beams of lengths ``L (B,)``, cosines ``c`` and sines ``sn`` cross:
+    the cell of ``((a0 + t c) / cell, (a1 + t sn) / cell)`` floored, inside ``shape``, for
+    ``t < L`` (``ObstacleMap._mark_free``'s numpy arithmetic, sample by sample)."""
+    out = np.empty(len(t) * len(L), dtype=np.int64)
+    n = _free_cells_kernel(float(a0), float(a1), _arr(t), _arr(L), _arr(c), _arr(sn), float(cell),
+                           int(shape[0]), int(shape[1]), flat, out)
+    return out[:n]
+
+
 def warm_up() -> None:
     """Compile (or load from numba's cache) every kernel of this module."""
+    free_cells(0.5, 0.5, np.array([0.1, 0.2]), np.array([0.15, 0.3]), np.ones(2), np.zeros(2), 0.1, (8, 8),
+               np.zeros(64, bool))
     p = boundary_points((0.1, -0.2), 1.0, 0.5, 0.3, 0.9, 16)
     gauge_any_inside((0.0, 0.0), 1.0, 0.5, 0.3, 0.9, _arr(p))
     spacing(p)

@@ -611,16 +611,15 @@ class ObstacleMap:
         t = np.arange(step, max(float(L.max(initial=0.0)), 0.0), step)
         if not len(t) or not len(L):
             return np.zeros((0, 2))
-        m = t[None, :] < L[:, None]
-        # cell indices of the samples (cos and sin once per beam, not per sample)
-        fx = ((scan.pose[0] - self._lo[0]) + t[None, :] * np.cos(ang)[:, None])[m] / cfg.free_cell
-        fy = ((scan.pose[1] - self._lo[1]) + t[None, :] * np.sin(ang)[:, None])[m] / cfg.free_cell
-        i, j = np.floor(fx).astype(np.int64), np.floor(fy).astype(np.int64)
-        ok = (i >= 0) & (j >= 0) & (i < self._fshape[0]) & (j < self._fshape[1])
-        lin = i[ok] * self._fshape[1] + j[ok]
+        # cell indices of the samples t < L of every beam, those not yet free (compiled: per
+        # sample ((pose - lo) + t cos) / free_cell floored, as the numpy form
+        #   m = t[None] < L[:, None]; fx = ((pose - lo) + t[None] * cos(ang)[:, None])[m] / free_cell
+        # did; cos and sin numpy's, once per beam)
         flat = self._free.reshape(-1)  # a view (C-contiguous)
+        lin = _shape_kernel.free_cells(scan.pose[0] - self._lo[0], scan.pose[1] - self._lo[1], t, L, np.cos(ang),
+                                       np.sin(ang), cfg.free_cell, self._fshape, flat)
         # only the samples in cells not yet free need sorting (few once the area is explored)
-        lin = np.unique(lin[~flat[lin]])
+        lin = np.unique(lin)
         flat[lin] = True
         fi, fj = lin // self._fshape[1], lin % self._fshape[1]
         return self._lo + (np.stack((fi, fj), axis=1) + 0.5) * cfg.free_cell

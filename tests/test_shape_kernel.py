@@ -248,3 +248,27 @@ def test_median_is_numpys():
         if n > 4 and rng.random() < 0.3:
             a[: n // 2] = a[0]  # ties
         assert F._median(a) == float(np.median(a))
+
+
+def test_free_cells_are_the_numpy_forms_cells():
+    """free_cells gives the set of not-yet-free cells of ObstacleMap._mark_free's numpy form."""
+    from perception import _shape_kernel as K
+
+    rng = np.random.default_rng(21)
+    for _ in range(30):
+        B, cell = int(rng.integers(1, 400)), float(rng.choice([0.05, 0.1, 0.07]))
+        L = rng.uniform(-0.5, 6.0, B)
+        ang = rng.uniform(-np.pi, np.pi, B)
+        t = np.arange(cell / 2, max(float(L.max(initial=0.0)), 0.0), cell / 2)
+        a0, a1 = float(rng.uniform(-1, 9)), float(rng.uniform(-1, 9))
+        shape = (int(rng.integers(10, 120)), int(rng.integers(10, 120)))
+        flat = rng.uniform(size=shape[0] * shape[1]) < 0.3
+        m = t[None, :] < L[:, None]
+        fx = (a0 + t[None, :] * np.cos(ang)[:, None])[m] / cell
+        fy = (a1 + t[None, :] * np.sin(ang)[:, None])[m] / cell
+        i, j = np.floor(fx).astype(np.int64), np.floor(fy).astype(np.int64)
+        ok = (i >= 0) & (j >= 0) & (i < shape[0]) & (j < shape[1])
+        lin = i[ok] * shape[1] + j[ok]
+        ref = np.unique(lin[~flat[lin]])
+        got = np.unique(K.free_cells(a0, a1, t, L, np.cos(ang), np.sin(ang), cell, shape, flat))
+        assert np.array_equal(got, ref)
