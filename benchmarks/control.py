@@ -3,7 +3,7 @@
 Run from the repository root::
 
     python -m benchmarks.control [--quick] [--out benchmarks/results] [--starts 10] [--goals 2] [--random 5] [--jobs 1]
-                                 [--push-forward] [--standoff D] [--no-crawl-guard]
+                                 [--push-forward] [--standoff D] [--no-crawl-guard] [--rate-limited]
 
 For each world (``simple``, ``office`` with all obstacles known, and random forest worlds from
 ``tests.worldgen`` with ``gap=0.3`` so that they stay forests in the robot's configuration
@@ -19,9 +19,12 @@ measures: sign changes of the commanded turn rate per metre travelled (|omega| >
 integrated absolute curvature ``sum |omega| dt`` over moving steps (rad), and the evaluation
 suite's chatter (:func:`benchmarks.methods.chatter`: sign flips of the executed turn rate between
 consecutive periods, both above 0.05 rad/s, per metre; a run is *flagged* above 1/m) with the
-count of flagged runs. ``--push-forward`` runs the controller with
+count of flagged runs; the longest time to goal of a successful run; *rate-limit jumps*: steps
+whose command changed by more than ``accel_max dt`` in ``v`` or ``alpha_max dt`` in ``omega``
+(the controller's documented bound; 0 expected). ``--push-forward`` runs the controller with
 ``ControllerConfig(push_forward=True)`` and ``--standoff D`` with ``ControllerConfig(standoff=D)``
-(``--standoff 0``: the controller without the stand-off; docs/control.md); the crawl guard
+(``--standoff 0``: the controller without the stand-off; docs/control.md), ``--rate-limited``
+with the rate-limited mode (``RATE_LIMITED``); the crawl guard
 then engages ``standoff=0.03`` only while the robot crawls. Also the median
 time of one controller step (field, Jacobian, command) with its target <= 2 ms.
 Results: ``<out>/control.json`` and ``<out>/control.md`` (also printed); progress on stderr.
@@ -51,6 +54,8 @@ __all__ = ["main", "run", "render_markdown", "STEP_TARGET"]
 
 STEP_TARGET = 2e-3
 POS_TOL, HEADING_TOL, MAX_TIME = 0.05, 0.1, 120.0
+#: the controller's rate-limited mode (navigation/control.py, docs/control.md)
+RATE_LIMITED = {"accel_max": 1.0, "alpha_max": 6.0, "brake_share": 0.5}
 CHATTER_FLAG = 1.0  #: chatter per metre above which a run is flagged (as in benchmarks.evaluation)
 
 
@@ -59,7 +64,7 @@ def _episode(world, field, start, cfg, guard: bool = True) -> dict:
     sim = Simulator(world, seed=0, pose=start)
     tracker = Tracker(cfg, CrawlConfig()) if guard else None
     omegas, step_times, poses = [], [], []
-    reached = False
+    reached, jumps = False, 0
     for _ in range(int(MAX_TIME / sim.dt)):
         x, y, th = sim.pose
         if math.hypot(x - field.goal[0], y - field.goal[1]) < POS_TOL and abs(wrap_angle(th - field.heading)) < HEADING_TOL:
@@ -70,6 +75,9 @@ def _episode(world, field, start, cfg, guard: bool = True) -> dict:
         step_times.append(time.perf_counter() - t0)
         poses.append((x, y, th))
         result = sim.step((cmd.v, cmd.omega))
+        pv, pw = omegas[-1] if omegas else (0.0, 0.0)
+        if abs(cmd.v - pv) > cfg.accel_max * sim.dt + 1e-9 or abs(cmd.omega - pw) > cfg.alpha_max * sim.dt + 1e-9:
+            jumps += 1
         omegas.append((cmd.v, cmd.omega))
         if result.collision is not None:
             break
@@ -81,7 +89,7 @@ def _episode(world, field, start, cfg, guard: bool = True) -> dict:
     return {"reached": reached, "collisions": len(m.collisions), "min_clearance": float(m.min_clearance),
             "distance": float(m.distance), "time": float(sim.time), "flips_per_m": flips / max(m.distance, 1e-9),
             "curvature": float(curvature), "chatter": chatter(poses, sim.dt), "step_times": step_times,
-            "engagements": tracker.guard.engagements if guard else 0}
+            "engagements": tracker.guard.engagements if guard else 0, "jumps": jumps}
 
 
 def _worlds(n_random: int):
@@ -94,10 +102,12 @@ def _worlds(n_random: int):
 def _world_row(job) -> dict:
     """Closed-loop runs of one world: ``job = (name, world, starts, goals, push_forward, standoff,
     guard)`` (``standoff=None``: the :class:`ControllerConfig` default; ``guard``: the crawl guard)."""
-    name, world, starts, goals, push_forward, standoff, guard = job
+    name, world, starts, goals, push_forward, standoff, guard, rate = job
     rng = np.random.default_rng(0)
     r = world.robot.radius
     extra = {} if standoff is None else {"standoff": standoff}
+    if rate:
+        extra.update(RATE_LIMITED)
     cfg = ControllerConfig.from_robot(world.robot, push_forward=push_forward, **extra)
     eps, times = [], []
     for g in range(goals):
@@ -120,6 +130,8 @@ def _world_row(job) -> dict:
         "chatter": statistics.fmean(e["chatter"] for e in eps),
         "flagged": sum(e["chatter"] > CHATTER_FLAG for e in eps),
         "engaged_runs": sum(e["engagements"] > 0 for e in eps),
+        "jumps": sum(e["jumps"] for e in eps),
+        "max_time": max(e["time"] for e in ok) if ok else None,
         "step_median": statistics.median(times), "step_pass": statistics.median(times) <= STEP_TARGET,
     }
     log(f"[bench] {name}: {row['reached']}/{row['runs']} reached, {row['collisions']} collisions")
@@ -141,15 +153,19 @@ def _total(rows: list[dict]) -> dict:
             "flips_per_m": mean("flips_per_m", "runs"), "curvature": mean("curvature", "runs"),
             "chatter": mean("chatter", "runs"), "flagged": sum(r["flagged"] for r in rows),
             "engaged_runs": sum(r.get("engaged_runs", 0) for r in rows),
+            "jumps": sum(r["jumps"] for r in rows),
+            "max_time": max((r["max_time"] for r in rows if r["max_time"] is not None), default=None),
             "step_median": statistics.median(r["step_median"] for r in rows),
             "step_pass": all(r["step_pass"] for r in rows)}
 
 
 def run(*, quick: bool = False, starts: int = 10, goals: int = 2, n_random: int = 5, jobs: int = 1,
-        push_forward: bool = False, standoff: float | None = None, crawl_guard: bool = True) -> dict:
+        push_forward: bool = False, standoff: float | None = None, crawl_guard: bool = True,
+        rate_limited: bool = False) -> dict:
     if quick:
         starts, goals, n_random = 2, 1, 0
-    work = [(name, world, starts, goals, push_forward, standoff, crawl_guard) for name, world in _worlds(n_random)
+    work = [(name, world, starts, goals, push_forward, standoff, crawl_guard, rate_limited)
+            for name, world in _worlds(n_random)
             if not quick or name == "simple"]
     if jobs > 1:
         from concurrent.futures import ProcessPoolExecutor
@@ -161,7 +177,7 @@ def run(*, quick: bool = False, starts: int = 10, goals: int = 2, n_random: int 
     return {"benchmark": "control", "quick": quick,
             "settings": {"starts": starts, "goals": goals, "random": n_random, "push_forward": push_forward,
                          "standoff": ControllerConfig().standoff if standoff is None else standoff,
-                         "crawl_guard": crawl_guard},
+                         "crawl_guard": crawl_guard, "rate_limited": rate_limited},
             "tolerances": {"position": POS_TOL, "heading": HEADING_TOL, "max_time": MAX_TIME},
             "step_target": STEP_TARGET, "worlds": rows,
             "machine": machine_info()}
@@ -177,7 +193,8 @@ def render_markdown(result: dict) -> str:
                                              f" --starts {st['starts']} --goals {st['goals']} --random {st['random']}")
            + (" --push-forward" if st.get("push_forward") else "")
            + (f" --standoff {st['standoff']:g}" if st.get("standoff") is not None else "")
-           + ("" if st.get("crawl_guard", True) else " --no-crawl-guard"))
+           + ("" if st.get("crawl_guard", True) else " --no-crawl-guard")
+           + (" --rate-limited" if st.get("rate_limited") else ""))
     lines = ["# Closed-loop controller benchmark", "",
              f"`{cmd}` "
              f"(Python {result['machine']['python']}, {result['machine']['cpus']} CPUs). Goal pose reached: "
@@ -185,14 +202,15 @@ def render_markdown(result: dict) -> str:
              + ("crawl guard on (navigation.Tracker)." if st.get("crawl_guard", True) else "plain controller "
                 "(navigation.track, no crawl guard).") + " Guard: runs in which it engaged the stand-off.", "",
              "| world | obstacles | reached | collisions | min clearance (m) | mean path (m) | mean time (s) "
-             "| turn-sign flips / m | integrated abs curvature (rad) | chatter / m | flagged (> 1/m) "
-             "| guard | controller step (ms) | <= 2 ms |",
-             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|:---:|"]
+             "| longest time (s) | turn-sign flips / m | integrated abs curvature (rad) | chatter / m "
+             "| flagged (> 1/m) | guard | rate-limit jumps | controller step (ms) | <= 2 ms |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|:---:|"]
     for r in result["worlds"]:
         lines.append(f"| {r['world']} | {_f(r['n_obstacles'], 'd')} | {r['reached']}/{r['runs']} | {r['collisions']} | "
                      f"{r['min_clearance']:.4f} | {_f(r['mean_distance'], '.2f')} | {_f(r['mean_time'], '.1f')} | "
+                     f"{_f(r.get('max_time'), '.1f')} | "
                      f"{r['flips_per_m']:.2f} | {r['curvature']:.2f} | {r['chatter']:.2f} | {r['flagged']}/{r['runs']} | "
-                     f"{r.get('engaged_runs', 0)}/{r['runs']} | "
+                     f"{r.get('engaged_runs', 0)}/{r['runs']} | {r.get('jumps', 0)} | "
                      f"{r['step_median'] * 1e3:.2f} | "
                      f"{'PASS' if r['step_pass'] else 'FAIL'} |")
     return "\n".join(lines) + "\n"
@@ -209,6 +227,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--jobs", type=int, default=1, help="worker processes (one world per task)")
     parser.add_argument("--push-forward", action="store_true",
                         help="track the push-forward direction (ControllerConfig(push_forward=True))")
+    parser.add_argument("--rate-limited", action="store_true",
+                        help="the controller's rate-limited mode (accel_max 1, alpha_max 6, brake_share 0.5)")
     parser.add_argument("--standoff", type=float, default=None,
                         help="ControllerConfig.standoff in m (0 turns the stand-off off; default: the config's)")
     parser.add_argument("--no-crawl-guard", action="store_true",
@@ -217,7 +237,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.starts < 1 or args.goals < 1 or args.random < 0 or args.jobs < 1:
         parser.error("--starts, --goals and --jobs must be >= 1 and --random >= 0")
     result = run(quick=args.quick, starts=args.starts, goals=args.goals, n_random=args.random, jobs=args.jobs,
-                 push_forward=args.push_forward, standoff=args.standoff, crawl_guard=not args.no_crawl_guard)
+                 push_forward=args.push_forward, standoff=args.standoff, crawl_guard=not args.no_crawl_guard,
+                 rate_limited=args.rate_limited)
     write_results(args.out, "control", result, render_markdown(result))
     return 0
 

@@ -53,17 +53,38 @@ Choices where the paper is silent or loose, and why:
 * **Safety limit (not in the paper).** With commands held for a control period ``dt``, a
   saturated ``omega`` and a 5 cm step can carry the robot across the thin layer next to an
   (inflated) boundary in which the field turns away, before the field has turned it. We cap
-  ``v <= d(q) / safety_horizon`` where ``d(q)`` is a certified lower bound on the distance from
-  ``q`` to the field's obstacles and workspace boundary (:attr:`OrientedField.clearance`; those
-  obstacles are grown by the robot radius; the smaller of the two waypoints' bounds during a
-  switch). If ``dt <= safety_horizon`` (default 0.1 s, the paper's control period), a step
-  moves the robot by at most ``v dt <= d(q)``, so the robot stays in the grown free space and
-  its disc never touches an obstacle, whatever the field does. The cap is continuous in the
-  pose and only acts within ``v_max * safety_horizon`` (5 cm at 0.5 m/s) of a grown boundary.
-  It is applied to ``v`` before ``v`` enters the feed-forward term of (24b): a robot held still
-  must not turn by the amount the field would rotate under a motion it does not make.
+  ``v <= safe_speed(c d(q))`` (:func:`safe_speed`) where ``d(q)`` is a certified lower bound on
+  the distance from ``q`` to the field's obstacles and workspace boundary
+  (:attr:`OrientedField.clearance`; those obstacles are grown by the robot radius; the smaller
+  of the two waypoints' values during a switch). By default (``accel_max = 0``,
+  ``brake_share = c = 1``) this is ``v <= d(q) / safety_horizon``: if ``dt <= safety_horizon``
+  (default 0.1 s, the paper's control period), a step moves the robot by at most
+  ``v dt <= d(q)``, so the robot stays in the grown free space and its disc never touches an
+  obstacle, whatever the field does; the cap only acts within ``v_max * safety_horizon`` (5 cm
+  at 0.5 m/s) of a grown boundary. With ``accel_max = a > 0`` the robot, lowering ``v`` by
+  ``a * safety_horizon`` per period, stops within the share ``c`` of ``d(q)``; with ``c < 1``
+  ``d(q)`` is replaced by the exact clearance below :data:`EXACT_BELOW` and never reaches 0, so
+  a robot stopped facing a boundary can turn and leave. The cap is continuous in the pose. It is
+  applied to ``v`` before ``v`` enters the feed-forward term of (24b): a robot held still must
+  not turn by the amount the field would rotate under a motion it does not make.
   ``safety_horizon=0`` disables it. The guarantee is relative to the obstacles the field was
   built on: estimates that lie inside the true obstacles leave the robot that much less margin.
+* **Rate-limited mode (not in the paper; opt-in: ``accel_max=1.0, alpha_max=6.0,
+  brake_share=0.5``; the issue's bounded change per step).** Given the previous command
+  (``previous = (v, omega, dt)``; :class:`~navigation.tracker.Tracker` passes it), ``v`` and
+  ``omega`` move towards eq. 24's values by at most ``accel_max dt`` and ``alpha_max dt``: with
+  these values at most 0.1 m/s and 0.6 rad/s per 0.1 s period, which a robot with acceleration
+  limits can execute as commanded. Eq. 24b's feed-forward uses the rate-limited ``v``. The
+  braking-aware safety limit never needs to override the rate limit while the clearance shrinks
+  no faster than the robot moves (the argument of :func:`safe_speed`); where it shrinks faster
+  (a field on a new map with an obstacle ahead) the safety limit wins. Where the navigation
+  transformation folds the tracked direction (``|grad theta_gamma|`` of 10^2-10^4 rad/m, see
+  "Which direction is tracked") eq. 24 alone alternates ``omega`` between ``+-omega_max`` every
+  period; the limit turns that into a bounded ramp. It is not the default because in the
+  trenches along chained walls the default controller gets out by exactly that bang-bang
+  turning, and the rate-limited robot does so less often (measured, docs/control.md
+  "Rate-limited mode"). Without ``previous`` (or with ``accel_max = alpha_max = 0``) the
+  controller is a pure function of the pose.
 * **Stand-off from grown boundaries (not in the paper; opt-in: ``ControllerConfig.standoff = D``,
   e.g. 0.03 m; the default 0 leaves every command as without it).** Next
   to chained walls (and the workspace boundary) the navigation transformation is so anisotropic
@@ -128,7 +149,8 @@ import numpy as np
 from .errors import NavigationError, check_numbers
 from .oriented import BoundaryFrame, OrientedField, wrap_angle
 
-__all__ = ["ControllerConfig", "Command", "track", "track_waypoints", "switch_weight", "SAFETY_HORIZON"]
+__all__ = ["ControllerConfig", "Command", "track", "track_waypoints", "switch_weight", "safe_speed",
+           "stopping_distance", "SAFETY_HORIZON"]
 
 SAFETY_HORIZON = 0.1  #: default ``ControllerConfig.safety_horizon`` (s), the paper's control period
 
@@ -165,6 +187,20 @@ class ControllerConfig:
     standoff_gate : float
         If > 0, the wall flow is used only where the tracked direction's component along the
         nearest boundary's normal is below this (0: wherever the band applies).
+    accel_max : float
+        ``a`` (m/s^2; 0, off): the deceleration the safety limit assumes (the robot must be able
+        to stop within the certified clearance, decelerating by ``a`` per second; see
+        :func:`safe_speed`) and, when the previous command is given (``previous`` of
+        :func:`track`, as :class:`~navigation.tracker.Tracker` does), the largest change of ``v``
+        per second. 0: no rate limit and the safety limit ``v <= clearance / safety_horizon``.
+        The rate-limited mode (see the module doc) uses 1.0.
+    alpha_max : float
+        Largest change of ``omega`` per second (rad/s^2; 0, off; the rate-limited mode: 6.0)
+        when the previous command is given.
+    brake_share : float
+        ``c`` in ``(0, 1]`` (1; the rate-limited mode: 0.5): the robot's stopping distance is at
+        most this share of its clearance (:func:`safe_speed`); below 1 the clearance never
+        reaches 0, and the safety limit uses the exact clearance below :data:`EXACT_BELOW`.
     """
 
     k_v: float = 1.0
@@ -180,11 +216,16 @@ class ControllerConfig:
     standoff: float = 0.0
     standoff_push: float = 0.5
     standoff_gate: float = 0.0
+    accel_max: float = 0.0
+    alpha_max: float = 0.0
+    brake_share: float = 1.0
 
     def __post_init__(self):
         check_numbers(self, ("k_v", "k_omega", "v_max", "omega_max", "k_switch", "switch_margin"), positive=True)
-        check_numbers(self, ("safety_horizon", "boundary_blend", "standoff", "standoff_push", "standoff_gate"),
-                      positive=False)
+        check_numbers(self, ("safety_horizon", "boundary_blend", "standoff", "standoff_push", "standoff_gate",
+                             "accel_max", "alpha_max"), positive=False)
+        if not self.brake_share <= 1.0 or not self.brake_share > 0.0:
+            raise NavigationError(f"ControllerConfig.brake_share must be in (0, 1], got {self.brake_share!r}")
 
     @classmethod
     def from_robot(cls, robot, **overrides) -> "ControllerConfig":
@@ -399,45 +440,140 @@ def _approach_limit(theta: float, bands, cfg: ControllerConfig) -> float:
     return limit
 
 
+def stopping_distance(v: float, config: ControllerConfig = ControllerConfig()) -> float:
+    """Distance (m) the robot covers from speed ``v`` until it stands, holding each command for
+    one safety horizon ``h`` and lowering ``v`` by ``a h`` per command (``a = accel_max``):
+    ``D(v) = h sum_{j >= 0} max(0, v - j a h)``; ``v h`` when ``accel_max`` is 0 (it stops at
+    the next command). The inverse of :func:`safe_speed`."""
+    h = _horizon(config)
+    a = config.accel_max
+    if not v > 0.0:
+        return 0.0
+    if not a > 0.0:
+        return v * h
+    d = a * h
+    m = math.ceil(v / d - 1e-12)  # number of positive terms
+    return h * (m * v - d * m * (m - 1) / 2.0)
+
+
+def safe_speed(clearance: float, config: ControllerConfig = ControllerConfig()) -> float:
+    """The safety limit: the largest ``v`` with ``stopping_distance(v) <= clearance``.
+
+    With ``a = accel_max`` and ``h = safety_horizon`` the stopping distance is piecewise linear,
+    ``h (m v - a h m (m - 1) / 2)`` for ``v`` in ``((m - 1) a h, m a h]``, so the limit is
+    ``(clearance / h + a h m (m - 1) / 2) / m`` with ``m`` the smallest integer such that
+    ``m (m + 1) >= 2 clearance / (a h^2)``. ``a = 0`` gives ``clearance / h``. Continuous and
+    increasing in ``clearance``, at most ``clearance / h``.
+
+    The controller's safety limit is ``safe_speed(c d)`` for the clearance ``d`` and
+    ``c = ControllerConfig.brake_share``. Why it keeps the rate-limited controller safe without
+    overriding the rate limit: since ``D(v) = v h + D(v - a h)``, a robot at ``v`` with
+    ``D(v) <= c d`` that moves ``v h`` has clearance ``d' >= d - v h`` afterwards (the
+    clearance is 1-Lipschitz along the motion), and ``D(v - a h) = D(v) - v h <= c d - v h
+    <= c d'``: braking by the rate limit is always allowed. Each step uses at most the share
+    ``c`` of the clearance (``v h <= D(v) <= c d``), so with ``c < 1`` the clearance never
+    reaches 0 (it shrinks by the factor ``1 - c`` per step at worst) and a robot that stopped
+    facing a boundary can always turn and leave.
+    """
+    if not clearance > 0.0:
+        return 0.0
+    h = _horizon(config)
+    a = config.accel_max
+    if not a > 0.0:
+        return clearance / h
+    d = a * h
+    x = 2.0 * clearance / (d * h)
+    m = max(1, math.ceil((math.sqrt(1.0 + 4.0 * x) - 1.0) / 2.0 - 1e-12))
+    while m * (m + 1) < x:  # guard the rounding of the square root
+        m += 1
+    while m > 1 and (m - 1) * m >= x:
+        m -= 1
+    return (clearance / h + d * m * (m - 1) / 2.0) / m
+
+
+def _previous(previous) -> tuple[float, float, float] | None:
+    if previous is None:
+        return None
+    try:
+        v, w, dt = (float(x) for x in previous)
+    except (TypeError, ValueError):
+        raise NavigationError(f"previous must be (v, omega, dt), got {previous!r}") from None
+    if not (math.isfinite(v) and math.isfinite(w) and math.isfinite(dt) and dt >= 0.0):
+        raise NavigationError(f"previous must be finite (v, omega, dt >= 0), got {previous!r}")
+    return v, w, dt
+
+
 def _command(theta: float, tg: float, grad: np.ndarray, speed: float, clearance: float,
-             cfg: ControllerConfig, approach: float = math.inf) -> Command:
-    """Eq. 24 on the direction ``tg`` (gradient ``grad``): heading gate, saturation and safety
-    limit applied to ``v`` before it enters the feed-forward term, then ``omega``."""
+             cfg: ControllerConfig, approach: float = math.inf, previous=None) -> Command:
+    """Eq. 24 on the direction ``tg`` (gradient ``grad``): heading gate, saturation, safety
+    limit and rate limit applied to ``v`` before it enters the feed-forward term, then
+    ``omega`` and its rate limit (``previous = (v, omega, dt)``, see :func:`track`)."""
     err = wrap_angle(theta - tg)
     v = cfg.k_v * speed
     if cfg.heading_gate:
         v *= max(0.0, math.cos(err))
     raw = v
-    v = min(v, cfg.v_max)
-    if cfg.safety_horizon > 0 and v > 0.0:
-        v = min(v, clearance / cfg.safety_horizon)
-    v = min(v, approach)
+    prev = _previous(previous)
+    limit = cfg.v_max
+    if cfg.safety_horizon > 0 and (v > 0.0 or prev is not None):
+        limit = min(limit, safe_speed(cfg.brake_share * clearance, cfg))
+    v = min(v, limit, approach)
+    if prev is not None and cfg.accel_max > 0:
+        pv, _, dt = prev
+        dv = cfg.accel_max * dt
+        # the rate limit, within [0, v_max] and the safety limit (which it never has to
+        # override while the clearance shrinks no faster than the robot moves, see safe_speed)
+        v = max(0.0, min(max(v, pv - dv), pv + dv, limit))
     ff = grad[0] * math.cos(theta) + grad[1] * math.sin(theta)
     omega = -cfg.k_omega * err + v * ff
     ws = min(max(omega, -cfg.omega_max), cfg.omega_max)
+    if prev is not None and cfg.alpha_max > 0:
+        _, pw, dt = prev
+        dw = cfg.alpha_max * dt
+        ws = min(max(ws, pw - dw), pw + dw, cfg.omega_max)
+        ws = max(ws, -cfg.omega_max)
     return Command(v, ws, tg, ws != omega or v != raw)
 
 
+EXACT_BELOW = 0.005  #: clearance bound (m) below which the safety limit uses the exact clearance
+
+
 def _clearance(q: np.ndarray, fields, cfg: ControllerConfig) -> float:
+    """The clearance the safety limit uses: the certified bound of each field (up to 2.5 mm
+    low); with ``brake_share < 1``, where it is below :data:`EXACT_BELOW`, the exact clearance
+    (1e-9 m accurate, less that), so that a robot next to a boundary is not held by the bound's
+    slack (the clearance then provably stays positive, :func:`safe_speed`)."""
     if cfg.safety_horizon <= 0:
         return math.inf
-    cap = cfg.v_max * cfg.safety_horizon
-    return min(float(f.clearance(q, cap)) for f in fields)
+    cap = stopping_distance(cfg.v_max, cfg) / cfg.brake_share  # the safety limit is v_max beyond it
+    out = math.inf
+    for f in fields:
+        b = float(f.clearance(q, cap))
+        if b < EXACT_BELOW and cfg.brake_share < 1.0:
+            b = max(b, f.clearance.exact(q) - 1e-9)
+        out = min(out, b)
+    return out
 
 
-def track(pose, field: OrientedField, config: ControllerConfig = ControllerConfig()) -> Command:
+def track(pose, field: OrientedField, config: ControllerConfig = ControllerConfig(),
+          previous=None) -> Command:
     """Eq. 24: command that tracks ``field`` from ``pose = (x, y, theta)``.
+
+    ``previous = (v, omega, dt)``: the command sent ``dt`` seconds ago; the new one then
+    differs from it by at most ``accel_max dt`` in ``v`` and ``alpha_max dt`` in ``omega``
+    (the rate limit; ``None``: no limit, a pure function of the pose). The safety limit and
+    the saturation hold either way.
 
     Raises
     ------
     NavigationError
-        Non-finite or malformed pose.
+        Non-finite or malformed pose or previous command.
     """
     q, theta = _pose(pose)
     band = _band(q, field, config)
     tg, grad, speed = _direction(q, field, config, band)
     return _command(theta, tg, grad, speed, _clearance(q, (field,), config), config,
-                    _approach_limit(theta, (band,), config))
+                    _approach_limit(theta, (band,), config), previous)
 
 
 def switch_weight(distance: float, config: ControllerConfig = ControllerConfig()) -> float:
@@ -453,15 +589,15 @@ def _switch(gamma: float, cfg: ControllerConfig) -> tuple[float, float]:
 
 
 def track_waypoints(pose, current: OrientedField, following: OrientedField | None = None,
-                    config: ControllerConfig = ControllerConfig()) -> Command:
+                    config: ControllerConfig = ControllerConfig(), previous=None) -> Command:
     """Eq. 25: track the blend of the current and following waypoints' fields.
 
-    With ``following=None`` this is :func:`track` towards ``current``.
+    With ``following=None`` this is :func:`track` towards ``current``; ``previous`` as there.
     """
     q, theta = _pose(pose)
     if following is None:
-        return track(pose, current, config)
+        return track(pose, current, config, previous)
     bands = (_band(q, current, config), _band(q, following, config))
     tg, grad, speed = _blend(q, current, following, config, bands)
     return _command(theta, tg, grad, speed, _clearance(q, (current, following), config), config,
-                    _approach_limit(theta, bands, config))
+                    _approach_limit(theta, bands, config), previous)

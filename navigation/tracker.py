@@ -29,7 +29,7 @@ from collections import deque
 from dataclasses import dataclass, replace
 
 
-from .control import Command, ControllerConfig, _pose, track_waypoints
+from .control import SAFETY_HORIZON, Command, ControllerConfig, _pose, track_waypoints
 from .errors import NavigationError, check_numbers
 from .oriented import OrientedField
 
@@ -123,27 +123,59 @@ class CrawlGuard:
 
 
 class Tracker:
-    """Eq. 24-25 with the crawl guard: :func:`track_waypoints` with ``config``, or with
-    ``config`` and ``standoff = crawl.standoff`` while the guard is engaged.
+    """Eq. 24-25 with the crawl guard and the rate limit: :func:`track_waypoints` with
+    ``config``, or with ``config`` and ``standoff = crawl.standoff`` while the guard is engaged,
+    given the previous command (``previous`` of :func:`~navigation.control.track`).
+
+    The rate limit (with ``config.accel_max`` / ``alpha_max`` > 0, the controller's opt-in
+    rate-limited mode): each command differs from the previous one by at most
+    ``config.accel_max dt`` in ``v`` and ``config.alpha_max dt`` in ``omega``, ``dt`` the time
+    since that command (1 m/s^2 and 6 rad/s^2: 0.1 m/s and 0.6 rad/s per 0.1 s period). The previous command is the last :meth:`command`, or what the caller reports it
+    actually sent (:meth:`applied`, e.g. a stop or a slower command of a supervisor). The first
+    command, and the first after more than ``max_gap`` seconds without one, start from rest
+    (``(0, 0)``, one ``safety_horizon`` ago). The safety limit (:func:`~navigation.control.safe_speed`)
+    accounts for the braking: while the clearance shrinks no faster than the robot moves (a
+    static, known world) the rate limit never has to be overridden; where it shrinks faster (an
+    obstacle discovered ahead) the safety limit wins and ``v`` drops at once.
 
     ``crawl=None`` disables the guard (the commands of :func:`track_waypoints` with ``config``).
     """
 
-    def __init__(self, config: ControllerConfig = ControllerConfig(), crawl: CrawlConfig | None = CrawlConfig()):
+    def __init__(self, config: ControllerConfig = ControllerConfig(), crawl: CrawlConfig | None = CrawlConfig(),
+                 max_gap: float = 0.5):
         self.config = config
         self.guard = CrawlGuard(crawl) if crawl is not None else None
         self._engaged_config = replace(config, standoff=crawl.standoff) if crawl is not None else config
         self._last = False
+        self.max_gap = float(max_gap)
+        self._sent: tuple[float, float, float] | None = None  # (t, v, omega) of the last command
 
     @property
     def engaged(self) -> bool:
         """Whether the last :meth:`command` used the stand-off."""
         return self._last
 
+    def applied(self, t: float, v: float, omega: float) -> None:
+        """Record the command actually sent at time ``t`` (when the caller changed or replaced
+        the last :meth:`command`): the next command's rate limit starts from it."""
+        t, v, omega = float(t), float(v), float(omega)
+        if math.isfinite(t) and math.isfinite(v) and math.isfinite(omega):
+            self._sent = (t, v, omega)
+
+    def _previous(self, t: float) -> tuple[float, float, float]:
+        s = self._sent
+        if s is not None and 0.0 <= t - s[0] <= self.max_gap:
+            return s[1], s[2], t - s[0]
+        return 0.0, 0.0, self.config.safety_horizon or SAFETY_HORIZON  # from rest
+
     def command(self, t: float, pose, current: OrientedField, following: OrientedField | None = None) -> Command:
         """The command for ``pose = (x, y, theta)`` at time ``t`` (s) towards ``current``
         (blended into ``following`` near ``current``'s goal, eq. 25)."""
         q, _ = _pose(pose)  # the controller's pose check, before the guard records the position
+        t = float(t)
         on = self.guard is not None and self.guard.update(t, q, current.goal)
         self._last = on
-        return track_waypoints(pose, current, following, self._engaged_config if on else self.config)
+        cmd = track_waypoints(pose, current, following, self._engaged_config if on else self.config,
+                              previous=self._previous(t))
+        self._sent = (t, cmd.v, cmd.omega)
+        return cmd

@@ -760,6 +760,8 @@ class Executive:
             v, w = 0.0, 0.0
         v = min(max(v, -self.control.v_max), self.control.v_max)
         w = min(max(w, -self.control.omega_max), self.control.omega_max)
+        # the controller's rate limit starts from what is sent (a stop, the motion guard's slower v)
+        self._tracker.applied(self.time, v, w)
         return TickResult(v, w, self.status(), replanned, map_changed, time.perf_counter() - t0)
 
     def _stop(self, state, msg, t0) -> TickResult:

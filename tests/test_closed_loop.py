@@ -17,6 +17,10 @@ by the robot radius for the field), the robot must
   and docs/control.md; the crawl guard rescues most of them); there the test reports the count
   and is an expected failure (``xfail``, not skipped: an unexpected pass shows as XPASS).
 
+The same runs in the controller's rate-limited mode (``accel_max=1.0, alpha_max=6.0,
+brake_share=0.5``, docs/control.md "Rate-limited mode") also assert the bounded change per step
+of the issue: every command within 0.1 m/s and 0.6 rad/s of the previous one, from rest.
+
 Sizes: the default run uses a reduced sample (``simple`` 10 starts, ``office`` 5, random worlds
 0-1 with 5 each); ``-m slow`` runs the issue's size, 100 starts on ``simple``, ``office`` and 30
 random forest worlds (``tests/worldgen.py``, ``gap=0.3`` so they stay forests when grown by the
@@ -38,11 +42,12 @@ from navigation.tracker import Tracker
 from navigation.oriented import OrientedField
 
 from .conftest import shared_world
-from .test_control import run_closed_loop
+from .test_control import RATE_LIMITED, run_closed_loop
 from .worldgen import random_forest_world, random_free_points
 
 MAX_TIME, DT = 120.0, 0.1  # simulated seconds per run, control period
 FAST = [("simple", 10), ("office", 5), ("random0", 5), ("random1", 5)]
+FAST_RATE = [("simple", 10), ("random0", 5)]
 SLOW = [("simple", 100), ("office", 100)] + [(f"random{s}", 100) for s in range(30)]
 
 
@@ -52,11 +57,11 @@ def _world(name: str):
     return shared_world(name)
 
 
-def _check_world(name: str, n_starts: int):
+def _check_world(name: str, n_starts: int, mode: dict | None = None):
     world = _world(name)
     rng = np.random.default_rng(7)
     r = world.robot.radius
-    cfg = ControllerConfig.from_robot(world.robot)
+    cfg = ControllerConfig.from_robot(world.robot, **(mode or {}))
     goal = random_free_points(world, 1, rng, margin=r + 0.2)[0]
     field = OrientedField(navigation.NavigationFunction(world, goal=goal, inflation=r),
                           heading=rng.uniform(-math.pi, math.pi))
@@ -85,3 +90,16 @@ def test_reaches_goal_pose_safely(name, n_starts):
 @pytest.mark.parametrize("name,n_starts", SLOW, ids=[n for n, _ in SLOW])
 def test_reaches_goal_pose_safely_full(name, n_starts):
     _check_world(name, n_starts)
+
+
+@pytest.mark.parametrize("name,n_starts", FAST_RATE, ids=[n for n, _ in FAST_RATE])
+def test_rate_limited_mode_reaches_goal_pose_safely_with_bounded_changes(name, n_starts):
+    """The controller's rate-limited mode (``RATE_LIMITED``): the same guarantees, and every
+    command within 0.1 m/s and 0.6 rad/s of the previous one (``run_closed_loop``)."""
+    _check_world(name, n_starts, RATE_LIMITED)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name,n_starts", SLOW, ids=[n for n, _ in SLOW])
+def test_rate_limited_mode_full(name, n_starts):
+    _check_world(name, n_starts, RATE_LIMITED)

@@ -115,3 +115,31 @@ def test_the_guard_rescues_a_run_that_crawls_with_the_plain_controller():
     assert reached, f"ended at {sim.pose} after {sim.time:.1f} s"
     assert tracker.guard.engagements >= 1
     assert sim.metrics.min_clearance > 0.0 and not sim.metrics.collisions
+
+
+def test_rate_limited_tracker_starts_from_rest_follows_what_was_sent_and_restarts_after_a_gap():
+    """In the rate-limited mode the tracker's first command is within one period's change of
+    rest, later ones within ``accel_max dt`` / ``alpha_max dt`` of the last command or of what
+    the caller reported sending (:meth:`Tracker.applied`), and after more than ``max_gap``
+    seconds without a command it starts from rest again. The default mode's commands are the
+    controller's, whatever came before."""
+    world = shared_world("office")
+    r = world.robot.radius
+    field = OrientedField(navigation.NavigationFunction(world, goal=(6.4, 3.3), inflation=r), heading=0.0)
+    cfg = ControllerConfig.from_robot(world.robot, accel_max=1.0, alpha_max=6.0, brake_share=0.5)
+    pose = (3.0, 2.2, 2.5)  # open space, facing away from the field: eq. 24 asks for a hard turn
+    tr = Tracker(cfg, crawl=None)
+    first = tr.command(0.0, pose, field)
+    assert first.v <= 0.1 + 1e-12 and abs(first.omega) <= 0.6 + 1e-12
+    second = tr.command(0.05, pose, field)
+    assert abs(second.v - first.v) <= 0.05 + 1e-12 and abs(second.omega - first.omega) <= 0.3 + 1e-12
+    tr.applied(0.05, 0.0, 0.0)  # the caller stopped the robot instead
+    third = tr.command(0.15, pose, field)
+    assert third.v <= 0.1 + 1e-12 and abs(third.omega) <= 0.6 + 1e-12
+    tr.applied(0.15, 0.4, -1.0)
+    late = tr.command(5.0, pose, field)  # long gap: from rest
+    assert late.v <= 0.1 + 1e-12 and abs(late.omega) <= 0.6 + 1e-12
+    plain = ControllerConfig.from_robot(world.robot)
+    tr = Tracker(plain, crawl=None)
+    tr.applied(0.0, 0.5, 1.5)
+    assert tr.command(0.1, pose, field) == track_waypoints(pose, field, None, plain)
