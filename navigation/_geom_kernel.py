@@ -18,10 +18,12 @@ small arrays (the forest construction calls these on a few dozen rows at a time)
 * :func:`wall_bound_rows`: :func:`navigation.forest._wall_bounds` (lower bounds of the distance
   from a squircle to the workspace boundary from its bounding rectangle and an inscribed
   polygon);
-* :func:`boundary_points`, :func:`offset_points`: :meth:`~navigation.geometry.Squircle.boundary_points`
-  and :meth:`~navigation.geometry.Squircle.offset_points` (arc-length-even boundary samples and
-  the offset curve :meth:`~navigation.geometry.Squircle.grow` tests), bit for bit: the
-  operations of the numpy code in its order, its cosines and sines computed by numpy.
+* :func:`boundary_points`, :func:`offset_points`, :func:`beta_gradient`:
+  :meth:`~navigation.geometry.Squircle.boundary_points`, :meth:`~navigation.geometry.Squircle.offset_points`
+  and :meth:`~navigation.geometry.Squircle.gradient` (arc-length-even boundary samples, the
+  offset curve :meth:`~navigation.geometry.Squircle.grow` tests, the exact gradient of the
+  jets of :func:`~navigation.geometry.beta_jet`), bit for bit: the operations of the numpy code
+  in its order, its cosines and sines computed by numpy.
 
 Packed rows are ``(cx, cy, cos theta, sin theta, half width, half height, s)``
 (:func:`navigation.geometry.pack`). Every row is computed independently of the others in its
@@ -36,7 +38,7 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["point_xy", "point_xy_cs", "beta_rows", "boundary_jet", "signed_distance_rows", "ray_length_rows", "far_gap_rows", "gap_bound_rows", "wall_bound_rows", "sample_table", "boundary_points", "offset_points", "refine_brackets"]
+__all__ = ["point_xy", "point_xy_cs", "beta_rows", "boundary_jet", "signed_distance_rows", "ray_length_rows", "far_gap_rows", "gap_bound_rows", "wall_bound_rows", "sample_table", "boundary_points", "offset_points", "beta_gradient", "refine_brackets"]
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -292,34 +294,57 @@ def boundary_points(row: np.ndarray, s2: float, n: int) -> np.ndarray:
     return out
 
 
-@numba.njit(error_model="numpy", **_JIT)  # 0 / 0 at a centre is NaN, as in numpy
-def _offset_kernel(P, k4, pts, r, out):
+@numba.njit(inline="always", **_JIT)
+def _beta_grad(P, k4, px, py):
+    """The gradient of ``beta`` of row ``P[0]`` at ``(px, py)`` as :func:`navigation.geometry.beta_jet`
+    computes it at order 1 (``k4 = 4 s^2`` as it forms it), column by column of its jets."""
     cx, cy, c, s, hw, hh = P[0, 0], P[0, 1], P[0, 2], P[0, 3], P[0, 4], P[0, 5]
     ihw, ihh = 1.0 / hw, 1.0 / hh
+    dxv, dyv = px - cx, py - cy
+    # the normalised coordinates (value, d/dx, d/dy)
+    u0, u1, u2 = (dxv * c + dyv * s) * ihw, (1.0 * c + 0.0 * s) * ihw, (0.0 * c + 1.0 * s) * ihw
+    w0, w1, w2 = (dyv * c - dxv * s) * ihh, (0.0 * c - 1.0 * s) * ihh, (1.0 * c - 0.0 * s) * ihh
+    du, dw = 2.0 * u0, 2.0 * w0
+    U0, U1, U2 = u0 * u0, u1 * du, u2 * du  # u.square()
+    W0, W1, W2 = w0 * w0, w1 * dw, w2 * dw
+    R0, R1, R2 = U0 + W0, U1 + W1, U2 + W2  # r2
+    dr = 2.0 * R0
+    D0 = R0 * R0 - (U0 * W0) * k4  # r2.square() - (u2 * w2) * k4
+    D1 = R1 * dr - (U1 * W0 + U0 * W1) * k4
+    D2 = R2 * dr - (U2 * W0 + U0 * W2) * k4
+    if D0 < 1e-200:  # at the centre: the root's jet is r2's
+        Q1, Q2 = R1, R2
+    else:
+        d1 = 0.5 / math.sqrt(D0)
+        Q1, Q2 = D1 * d1, D2 * d1
+    return (R1 + Q1) * 0.5, (R2 + Q2) * 0.5
+
+
+@numba.njit(error_model="numpy", **_JIT)  # 0 / 0 at a centre is NaN, as in numpy
+def _offset_kernel(P, k4, pts, r, out):
     for t in range(pts.shape[0]):
         px, py = pts[t, 0], pts[t, 1]
-        dxv, dyv = px - cx, py - cy
-        # beta_jet at order 1, column by column: the normalised coordinates (value, d/dx, d/dy)
-        u0, u1, u2 = (dxv * c + dyv * s) * ihw, (1.0 * c + 0.0 * s) * ihw, (0.0 * c + 1.0 * s) * ihw
-        w0, w1, w2 = (dyv * c - dxv * s) * ihh, (0.0 * c - 1.0 * s) * ihh, (1.0 * c - 0.0 * s) * ihh
-        du, dw = 2.0 * u0, 2.0 * w0
-        U0, U1, U2 = u0 * u0, u1 * du, u2 * du  # u.square()
-        W0, W1, W2 = w0 * w0, w1 * dw, w2 * dw
-        R0, R1, R2 = U0 + W0, U1 + W1, U2 + W2  # r2
-        dr = 2.0 * R0
-        D0 = R0 * R0 - (U0 * W0) * k4  # r2.square() - (u2 * w2) * k4
-        D1 = R1 * dr - (U1 * W0 + U0 * W1) * k4
-        D2 = R2 * dr - (U2 * W0 + U0 * W2) * k4
-        if D0 < 1e-200:  # at the centre: the root's jet is r2's
-            Q1, Q2 = R1, R2
-        else:
-            d1 = 0.5 / math.sqrt(D0)
-            Q1, Q2 = D1 * d1, D2 * d1
-        gx, gy = (R1 + Q1) * 0.5, (R2 + Q2) * 0.5
+        gx, gy = _beta_grad(P, k4, px, py)
         # b + r g / |g|
         nrm = math.sqrt(gx * gx + gy * gy)
         out[t, 0] = px + (r * gx) / nrm
         out[t, 1] = py + (r * gy) / nrm
+
+
+@numba.njit(error_model="numpy", **_JIT)
+def _gradient_kernel(P, k4, pts, out):
+    for t in range(pts.shape[0]):
+        out[t, 0], out[t, 1] = _beta_grad(P, k4, pts[t, 0], pts[t, 1])
+
+
+def beta_gradient(row: np.ndarray, k4: float, pts: np.ndarray) -> np.ndarray:
+    """The exact gradient ``(N, 2)`` of ``beta`` of the squircle ``row (7,)`` at ``pts (N, 2)``:
+    :meth:`navigation.geometry.Squircle.gradient` (``beta_jet`` at order 1, ``k4 = 4 s^2`` as it
+    forms it), the same operations in the same order."""
+    pts = _arr(pts).reshape(-1, 2)
+    out = np.empty_like(pts)
+    _gradient_kernel(_arr(row).reshape(1, 7), float(k4), pts, out)
+    return out
 
 
 def offset_points(row: np.ndarray, k4: float, pts: np.ndarray, r: float) -> np.ndarray:

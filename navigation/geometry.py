@@ -168,8 +168,9 @@ class Squircle:
     def gradient(self, q) -> np.ndarray:
         """Exact gradient of :meth:`beta`, shape ``(2,)`` or ``(N, 2)`` (0 at the centre)."""
         pts, single = as_points(q)
-        x, y = Jet.variables(pts, 1)
-        return restore(beta_jet(self.packed(), x, y).gradient(), single)
+        # compiled: beta_jet(self.packed(), *Jet.variables(pts, 1)).gradient(), the same bits
+        p = _packed_row(self)
+        return restore(_geom_kernel.beta_gradient(p, 4.0 * p[..., S] ** 2, pts), single)
 
     def hessian(self, q) -> np.ndarray:
         """Exact Hessian of :meth:`beta`, shape ``(2, 2)`` or ``(N, 2, 2)``.

@@ -65,4 +65,5 @@ def warm_up() -> float:
     sample_table(pack(obstacles[:1])[0], 16)  # ExactDistance's tables (clearances, the simulator)
     obstacles[-1].distance(np.array([[0.0, 0.0], [3.0, 3.0]]))  # ExactDistance's refinement
     obstacles[-1].offset_points(0.1, 16)  # boundary points and offset curves (Squircle.grow)
+    obstacles[-1].gradient(np.array([[0.0, 0.0]]))  # Squircle.gradient
     return time.perf_counter() - t0

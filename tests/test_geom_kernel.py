@@ -167,7 +167,7 @@ def test_sample_table_is_boundary_psi_and_its_points():
 
 
 def test_boundary_points_and_offset_points_are_the_numpy_forms():
-    """Squircle.boundary_points and Squircle.offset_points (compiled) give the bits of their numpy
+    """Squircle.boundary_points, offset_points and gradient (compiled) give the bits of their numpy
     forms: arc length on 8 n chords inverted by numpy.interp, point_at (which squares s with
     Python's pow, one unit in the last place from s * s for about 0.1 % of the values), and the
     offset along beta_jet's gradient; also for such values of s."""
@@ -188,6 +188,10 @@ def test_boundary_points_and_offset_points_are_the_numpy_forms():
         r = float(rng.uniform(-0.02, 0.5))
         g = G.beta_jet(sq.packed(), *Jet.variables(ref, 1)).gradient()
         assert np.array_equal(sq.offset_points(r, n), ref + r * g / np.linalg.norm(g, axis=1, keepdims=True))
+        # Squircle.gradient (compiled) is beta_jet's, also off the boundary and at the centre
+        q = np.concatenate((rng.uniform(-9, 9, (20, 2)), ref[:5], np.array([sq.center])))
+        with np.errstate(all="ignore"):
+            assert np.array_equal(sq.gradient(q), G.beta_jet(sq.packed(), *Jet.variables(q, 1)).gradient())
 
 
 def test_lazy_distance_tables_give_the_same_numbers():
