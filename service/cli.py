@@ -76,6 +76,13 @@ def _common(p: argparse.ArgumentParser, *, default_world: str | None) -> None:
     p.add_argument("--rate", type=_positive, default=10.0, help="control rate (Hz, simulated time for demo)")
     p.add_argument("--watchdog", type=_positive, default=1.0,
                    help="seconds without a fresh pose or scan before the robot is stopped (blocked)")
+    p.add_argument("--accel-max", type=_positive, default=None, metavar="A",
+                   help="the robot's acceleration limit (m/s^2): the controller's rate-limited mode, each "
+                        "command within A*dt of the last in v, braking within half the clearance "
+                        "(docs/control.md 'Rate-limited mode'; with --alpha-max unset it is 6 rad/s^2)")
+    p.add_argument("--alpha-max", type=_positive, default=None, metavar="B",
+                   help="the robot's turn-rate acceleration limit (rad/s^2) in the rate-limited mode "
+                        "(with --accel-max unset it is 1 m/s^2)")
     p.add_argument("-v", "--verbose", action="store_true", help="log every warning and state change")
 
 
@@ -110,6 +117,19 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
+def _executive_config(a):
+    """The executive's configuration from the options: the controller's rate-limited mode when
+    ``--accel-max`` or ``--alpha-max`` is given, else the defaults (``None``)."""
+    if a.accel_max is None and a.alpha_max is None:
+        return None
+    from navigation.control import ControllerConfig
+    from tamp.executive import ExecutiveConfig
+
+    return ExecutiveConfig(controller=ControllerConfig(
+        accel_max=1.0 if a.accel_max is None else a.accel_max,
+        alpha_max=6.0 if a.alpha_max is None else a.alpha_max, brake_share=0.5))
+
+
 def _setup(a):
     """World, brain, node config, telemetry; raises HarmonicTampError/OSError on bad input."""
     import navigation
@@ -131,7 +151,7 @@ def _setup(a):
         print(f"tamp-service: navigation kernels ready in {seconds:.1f} s (cached from now on)", file=sys.stderr,
               flush=True)
     try:
-        brain = ExecutiveBrain(world, a.task, known=a.known)
+        brain = ExecutiveBrain(world, a.task, known=a.known, config=_executive_config(a))
     except Exception as err:
         from .brain import task_error_code
         from navigation.errors import TampError

@@ -234,6 +234,11 @@ class ExecutiveConfig:
         random5 10.23 -> 10.07 m (the stall guard and re-planning already end most crawls
         there), while in the closed-loop controller benchmark it lifts the reach rate
         (docs/control.md, "Crawl guard").
+    controller : navigation.ControllerConfig or None
+        Gains and modes of the unicycle controller (eq. 24-25), e.g. the rate-limited mode for a
+        robot with acceleration limits (``ControllerConfig(accel_max=1.0, alpha_max=6.0,
+        brake_share=0.5)``, docs/control.md "Rate-limited mode"); its ``v_max`` and
+        ``omega_max`` are replaced by the world's robot's. ``None``: the defaults.
     """
 
     buffer: float = 0.15
@@ -254,6 +259,7 @@ class ExecutiveConfig:
     guard_margin: float | None = 0.005
     guard_horizon: float = 0.1
     crawl_guard: CrawlConfig | None = None
+    controller: ControllerConfig | None = None
 
     def __post_init__(self):
         check_numbers(self, ("buffer", "fallback_buffer", "check_margin", "blocked_timeout", "detour_ratio",
@@ -279,6 +285,9 @@ class ExecutiveConfig:
         if self.crawl_guard is not None and not isinstance(self.crawl_guard, CrawlConfig):
             raise TampError(f"ExecutiveConfig.crawl_guard must be a navigation.CrawlConfig or None, "
                             f"got {type(self.crawl_guard).__name__}")
+        if self.controller is not None and not isinstance(self.controller, ControllerConfig):
+            raise TampError(f"ExecutiveConfig.controller must be a navigation.ControllerConfig or None, "
+                            f"got {type(self.controller).__name__}")
 
 
 @dataclass(frozen=True, slots=True)
@@ -442,7 +451,8 @@ class Executive:
         self.world = world
         self.config = cfg = config or ExecutiveConfig()
         self.radius = r = float(world.robot.radius)
-        self.control = ControllerConfig.from_robot(world.robot)
+        self.control = (ControllerConfig.from_robot(world.robot) if cfg.controller is None else
+                        replace(cfg.controller, v_max=float(world.robot.v_max), omega_max=float(world.robot.omega_max)))
         # eq. 24-25, with the crawl guard when configured (navigation.tracker)
         self._tracker = Tracker(self.control, cfg.crawl_guard)
         self.cspace_workspace, _ = configuration_space(world.workspace, (), r)

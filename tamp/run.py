@@ -88,7 +88,8 @@ def run_mission(world, task: str | None = None, known: bool = False, seed: int =
     progress : callable(str), optional
         Called with a line on every state or target change.
     record : bool
-        Also return the trajectory (``"trajectory"``: poses) and commands.
+        Also return the trajectory (``"trajectory"``: the pose at each tick) and the commands
+        (``"commands"``: ``(v, omega)`` sent at each tick).
     executive_cls : type
         :class:`Executive` or a subclass (the evaluation suite's baselines), constructed as
         ``executive_cls(world, task, known=known, config=config)``.
@@ -127,7 +128,7 @@ def run_mission(world, task: str | None = None, known: bool = False, seed: int =
     sim = Simulator(world, seed=seed)
     period = 1.0 / world.lidar.rate_hz
     next_scan = 0.0
-    ticks, cpu, omegas, poses = [], [], [], []
+    ticks, cpu, omegas, poses, commands = [], [], [], [], []
     bad = 0
     last = None
     blocked_since = None
@@ -167,6 +168,7 @@ def run_mission(world, task: str | None = None, known: bool = False, seed: int =
             omegas.append(w)
         if record:
             poses.append(tuple(sim.pose))
+            commands.append((v, w))
         sim.step((v, w))
     m = sim.metrics
     rt = ex.replan_times
@@ -205,6 +207,7 @@ def run_mission(world, task: str | None = None, known: bool = False, seed: int =
     }
     if record:
         out["trajectory"] = poses
+        out["commands"] = commands
     return out
 
 

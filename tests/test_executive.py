@@ -246,6 +246,26 @@ def test_crawl_guard_option_is_validated_and_drives_a_mission():
     assert r["completed"] and r["collisions"] == 0 and r["bad_commands"] == 0
 
 
+def test_rate_limited_controller_option_drives_a_mission_with_bounded_changes():
+    """``ExecutiveConfig(controller=...)`` in the controller's rate-limited mode: the mission of
+    ``simple`` (unknown obstacles: map changes, re-plans) completes without contact, and every
+    command the executive sends is within 0.1 m/s and 0.6 rad/s of the one before (the braking-aware
+    safety limit never had to override the rate limit, the stops included); the robot's limits
+    come from the world, not from the given config."""
+    from navigation.control import ControllerConfig
+
+    with pytest.raises(TampError, match="controller"):
+        ExecutiveConfig(controller={"accel_max": 1.0})
+    cfg = ExecutiveConfig(controller=ControllerConfig(accel_max=1.0, alpha_max=6.0, brake_share=0.5))
+    world = shared_world("simple")
+    ex = Executive(world, config=cfg)
+    assert ex.control.v_max == world.robot.v_max and ex.control.accel_max == 1.0
+    r = run_mission(world, max_time=200, config=cfg, record=True)
+    assert r["completed"] and r["collisions"] == 0 and r["bad_commands"] == 0
+    c = np.asarray([(0.0, 0.0)] + r["commands"])
+    assert np.abs(np.diff(c[:, 0])).max() <= 0.1 + 1e-9 and np.abs(np.diff(c[:, 1])).max() <= 0.6 + 1e-9
+
+
 # ---------------------------------------------------------------------- rotation weights
 def test_rotation_weights_are_refitted_from_traversed_edges():
     """Section 4.2.3 step III: with edges whose measured costs follow ``d + w . Q`` exactly, the

@@ -33,11 +33,23 @@ def test_help_documents_every_option(capsys):
         assert info.value.code == 0
         out = capsys.readouterr().out
         for opt in ["--world", "--task", "--robot", "--listen", "--connect", "--zenoh-config", "--record",
-                    "--viewer", "--rate", "--duration", "--watchdog", *extra]:
+                    "--viewer", "--rate", "--duration", "--watchdog", "--accel-max", "--alpha-max", *extra]:
             assert opt in out, (sub, opt)
 
 
+def test_acceleration_limits_select_the_rate_limited_controller():
+    from service.cli import _executive_config, build_parser
+
+    parse = build_parser().parse_args
+    assert _executive_config(parse(["run", "--world", "simple"])) is None
+    cfg = _executive_config(parse(["demo", "--accel-max", "2"])).controller
+    assert (cfg.accel_max, cfg.alpha_max, cfg.brake_share) == (2.0, 6.0, 0.5)
+    cfg = _executive_config(parse(["run", "--world", "simple", "--alpha-max", "3"])).controller
+    assert (cfg.accel_max, cfg.alpha_max) == (1.0, 3.0)
+
+
 @pytest.mark.parametrize("argv, needle", [
+    (["run", "--accel-max", "-1"], "--accel-max"),
     (["run", "--rate", "0"], "--rate"), (["demo", "--speed", "fast"], "--speed"), (["jump"], "invalid choice"),
     (["run"], "--world"), (["run", "--world", "no/such/world.json"], "no/such"),
     (["run", "--world", "simple", "--task", "F (a"], "parse_error"),
