@@ -28,6 +28,7 @@ as the numpy code it mirrors, so its results are bit-identical (tested in
   union-find, the same labels (scipy's ``coo_matrix`` and graph checks cost more than the
   search on the small graphs of a cluster);
 * :func:`distance_weights`: :func:`perception.fit._distance_weights`;
+* :func:`accumulate`: ``np.add.at`` of a scan's returns into the map's cell sums (in order);
 * :func:`free_cells`: the cells a scan's beams cross (``ObstacleMap._mark_free``: the same
   products, sums, divisions and floors per sample; the cosines and sines are numpy's).
 """
@@ -501,8 +502,29 @@ def free_cells(a0: float, a1: float, t: np.ndarray, L: np.ndarray, c: np.ndarray
     return out[:n]
 
 
+@numba.njit(**_JIT)
+def _accumulate_kernel(n, total, view, ij, pts, vd, sel):
+    for k in range(len(ij)):
+        if sel[k]:
+            i, j = ij[k, 0], ij[k, 1]
+            n[i, j] += 1
+            total[i, j, 0] += pts[k, 0]
+            total[i, j, 1] += pts[k, 1]
+            view[i, j, 0] += vd[k, 0]
+            view[i, j, 1] += vd[k, 1]
+
+
+def accumulate(n: np.ndarray, total: np.ndarray, view: np.ndarray, ij: np.ndarray, pts: np.ndarray,
+               vd: np.ndarray, sel: np.ndarray) -> None:
+    """``np.add.at`` of 1, ``pts`` and ``vd`` into the cells ``ij`` of ``n``, ``total`` and ``view``
+    for the rows ``sel``, in place (the returns in order, as ``np.add.at`` adds them)."""
+    _accumulate_kernel(n, total, view, _arr(ij, np.int64), _arr(pts), _arr(vd), _arr(sel, np.bool_))
+
+
 def warm_up() -> None:
     """Compile (or load from numba's cache) every kernel of this module."""
+    accumulate(np.zeros((2, 2), np.int32), np.zeros((2, 2, 2)), np.zeros((2, 2, 2)), np.array([[0, 1]]),
+               np.ones((1, 2)), np.ones((1, 2)), np.ones(1, bool))
     free_cells(0.5, 0.5, np.array([0.1, 0.2]), np.array([0.15, 0.3]), np.ones(2), np.zeros(2), 0.1, (8, 8),
                np.zeros(64, bool))
     p = boundary_points((0.1, -0.2), 1.0, 0.5, 0.3, 0.9, 16)

@@ -530,10 +530,13 @@ class ObstacleMap:
                 vd = np.zeros_like(pts_k)
             under = self._n[ij[:, 0], ij[:, 1]] < _MAX_CELL_COUNT
             sel = under
-            np.add.at(self._n, (ij[sel, 0], ij[sel, 1]), 1)
-            np.add.at(self._sum, (ij[sel, 0], ij[sel, 1]), pts_k[sel])
-            np.add.at(self._view, (ij[sel, 0], ij[sel, 1]), vd[sel])
-            new_cells = np.unique(ij[fresh], axis=0)
+            # np.add.at of 1, the points and the view directions of the rows sel (compiled, the
+            # same additions in the same order)
+            _shape_kernel.accumulate(self._n, self._sum, self._view, ij, pts_k, vd, sel)
+            # np.unique(ij[fresh], axis=0) by the cells' row-major codes (the same rows, order)
+            W = self._shape[1]
+            lin = np.unique(ij[fresh, 0] * W + ij[fresh, 1])
+            new_cells = np.stack((lin // W, lin % W), axis=1)
             scan_cell = ij
         touched = self._cluster_new(new_cells, scan_cell, beam_of, scan)
         # --- which clusters need a refit

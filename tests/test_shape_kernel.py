@@ -272,3 +272,24 @@ def test_free_cells_are_the_numpy_forms_cells():
         ref = np.unique(lin[~flat[lin]])
         got = np.unique(K.free_cells(a0, a1, t, L, np.cos(ang), np.sin(ang), cell, shape, flat))
         assert np.array_equal(got, ref)
+
+
+def test_accumulate_is_add_at():
+    """accumulate adds as np.add.at does (repeated cells, in order: the same sums to the bit)."""
+    from perception import _shape_kernel as K
+
+    rng = np.random.default_rng(22)
+    for _ in range(20):
+        shape = (int(rng.integers(2, 30)), int(rng.integers(2, 30)))
+        k = int(rng.integers(0, 300))
+        ij = np.stack((rng.integers(0, shape[0], k), rng.integers(0, shape[1], k)), axis=1).astype(np.int64)
+        pts, vd = rng.normal(size=(k, 2)) * 7.3, rng.normal(size=(k, 2))
+        sel = rng.uniform(size=k) < 0.8
+        n0 = rng.integers(0, 50, shape).astype(np.int32)
+        s0, v0 = rng.normal(size=shape + (2,)), rng.normal(size=shape + (2,))
+        n1, s1, v1 = n0.copy(), s0.copy(), v0.copy()
+        np.add.at(n0, (ij[sel, 0], ij[sel, 1]), 1)
+        np.add.at(s0, (ij[sel, 0], ij[sel, 1]), pts[sel])
+        np.add.at(v0, (ij[sel, 0], ij[sel, 1]), vd[sel])
+        K.accumulate(n1, s1, v1, ij, pts, vd, sel)
+        assert np.array_equal(n0, n1) and np.array_equal(s0, s1) and np.array_equal(v0, v1)
