@@ -147,17 +147,36 @@ def boundary_jet(P: np.ndarray, psi: np.ndarray) -> np.ndarray:
 
 
 @numba.njit(**_JIT)
-def _sample_table_kernel(P, n, sub, psi, pts):
+def _fine_kernel(n):
     F = 8 * n + 1
     step = 2.0 * math.pi / (F - 1)
-    fine = np.empty(F)
+    fine, fc, fs = np.empty(F), np.empty(F), np.empty(F)
+    for i in range(F):  # numpy.linspace(0, 2 pi, F): i * step, the last exactly 2 pi
+        fine[i] = i * step if i < F - 1 else 2.0 * math.pi
+        fc[i], fs[i] = math.cos(fine[i]), math.sin(fine[i])  # (point_xy's cosine and sine)
+    return fine, fc, fs
+
+
+_FINE_TABLE: dict = {}  # n -> the fine grid of _sample_table_kernel, its cosines and sines
+
+
+def _fine_grid(n: int):
+    hit = _FINE_TABLE.get(n)
+    if hit is None:
+        if len(_FINE_TABLE) >= 32:
+            _FINE_TABLE.clear()
+        hit = _FINE_TABLE[n] = _fine_kernel(n)
+    return hit
+
+
+@numba.njit(**_JIT)
+def _sample_table_kernel(P, n, sub, psi, pts, fine, fc, fs):
+    F = 8 * n + 1
     arc = np.empty(F)
     arc[0] = 0.0
-    px, py = point_xy(P, 0, 0.0)
-    fine[0] = 0.0
-    for i in range(1, F):  # numpy.linspace(0, 2 pi, F): i * step, the last exactly 2 pi
-        fine[i] = i * step if i < F - 1 else 2.0 * math.pi
-        x, y = point_xy(P, 0, fine[i])
+    px, py = point_xy_cs(P, 0, fc[0], fs[0])  # point_xy(P, 0, fine[i]), the trigonometry cached
+    for i in range(1, F):
+        x, y = point_xy_cs(P, 0, fc[i], fs[i])
         arc[i] = arc[i - 1] + math.sqrt((x - px) ** 2 + (y - py) ** 2)
         px, py = x, y
     total = arc[F - 1]
@@ -176,7 +195,7 @@ def _sample_table_kernel(P, n, sub, psi, pts):
     for t in range(n):
         a = psi[t]
         b = psi[t + 1] if t + 1 < n else psi[0] + 2.0 * math.pi
-        qx, qy = point_xy(P, 0, a + (b - a) * 0.0)
+        qx, qy = pts[t, 0], pts[t, 1]  # point_xy(P, 0, a + (b - a) * 0.0): a + 0.0 is a (a >= 0)
         for u in range(1, sub + 1):
             frac = u * (1.0 / sub) if u < sub else 1.0
             x, y = point_xy(P, 0, a + (b - a) * frac)
@@ -201,7 +220,7 @@ def sample_table(row: np.ndarray, n: int, sub: int = 16) -> tuple[np.ndarray, np
     :func:`navigation.geometry._sample_table`."""
     P = _arr(row).reshape(1, 7)
     psi, pts = np.empty(n), np.empty((n, 2))
-    arc = _sample_table_kernel(P, int(n), int(sub), psi, pts)
+    arc = _sample_table_kernel(P, int(n), int(sub), psi, pts, *_fine_grid(int(n)))
     return psi, pts, float(arc)
 
 
