@@ -10,8 +10,7 @@ import numpy as np
 import pytest
 
 import navigation
-from navigation.control import (ControllerConfig, safe_speed, stopping_distance, switch_weight, track,
-                                track_waypoints)
+from navigation.control import ControllerConfig, safe_speed, stopping_distance, switch_weight, track
 from navigation.errors import NavigationError
 from navigation.oriented import OrientedField, wrap_angle
 from navigation.tracker import Tracker
