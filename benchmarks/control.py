@@ -176,7 +176,7 @@ def run(*, quick: bool = False, starts: int = 10, goals: int = 2, n_random: int 
     rows.append(_total(rows))
     return {"benchmark": "control", "quick": quick,
             "settings": {"starts": starts, "goals": goals, "random": n_random, "push_forward": push_forward,
-                         "standoff": ControllerConfig().standoff if standoff is None else standoff,
+                         "standoff": standoff,
                          "crawl_guard": crawl_guard, "rate_limited": rate_limited},
             "tolerances": {"position": POS_TOL, "heading": HEADING_TOL, "max_time": MAX_TIME},
             "step_target": STEP_TARGET, "worlds": rows,
