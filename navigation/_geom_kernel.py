@@ -225,12 +225,12 @@ def sample_table(row: np.ndarray, n: int, sub: int = 16) -> tuple[np.ndarray, np
 
 
 @numba.njit(**_JIT)
-def _points_cs(P, s2, ux, uy, out):
-    """:meth:`navigation.geometry.Squircle.point_at` of row ``P[0]`` at the angles with cosines
-    ``ux`` and sines ``uy`` into ``out``, with ``s^2`` given (``s2``: ``point_at`` squares ``s``
-    with Python's ``**``, i.e. ``pow``, for about 0.1 % of the values of ``s`` one unit in the
-    last place from ``s * s``) and the operations in ``point_at``'s order."""
-    cx, cy, c, sn, hw, hh = P[0, 0], P[0, 1], P[0, 2], P[0, 3], P[0, 4], P[0, 5]
+def points_into(out, ux, uy, cx, cy, hw, hh, c, sn, s2):
+    """:meth:`navigation.geometry.Squircle.point_at` of the squircle with centre ``(cx, cy)``,
+    half sizes ``hw, hh``, rotation cosine/sine ``c, sn`` at the angles with cosines ``ux`` and
+    sines ``uy`` into ``out``, with ``s^2`` given (``s2``: ``point_at`` squares ``s`` with
+    Python's ``**``, i.e. ``pow``, for about 0.1 % of the values of ``s`` one unit in the last
+    place from ``s * s``) and the operations in ``point_at``'s order."""
     for i in range(len(ux)):
         m = ux[i] * uy[i]
         rho = math.sqrt(2.0 / (1.0 + math.sqrt(max(1.0 - 4.0 * s2 * m * m, 0.0))))
@@ -241,14 +241,29 @@ def _points_cs(P, s2, ux, uy, out):
 
 
 @numba.njit(**_JIT)
+def _points_cs(P, s2, ux, uy, out):
+    """:func:`points_into` for the squircle of row ``P[0]``."""
+    points_into(out, ux, uy, P[0, 0], P[0, 1], P[0, 4], P[0, 5], P[0, 2], P[0, 3], s2)
+
+
+@numba.njit(**_JIT)
 def _arc_psi_kernel(P, s2, fine, fc, fs, n):
-    """The angles of ``Squircle.boundary_points`` (up to its final ``point_at``): arc length over
-    the boundary points of the ``fine`` grid (cosines ``fc``, sines ``fs``) as
-    ``concatenate(([0], cumsum(norm(diff(pts)))))``, inverted at ``linspace(0, arc[-1], n,
-    endpoint=False)`` as ``np.interp`` does."""
-    F = len(fine)
-    pts = np.empty((F, 2))
+    """The angles of ``Squircle.boundary_points`` (up to its final ``point_at``) of row ``P[0]``:
+    :func:`arc_inverse` over the boundary points of the ``fine`` grid (cosines ``fc``, sines
+    ``fs``)."""
+    pts = np.empty((len(fine), 2))
     _points_cs(P, s2, fc, fs, pts)
+    return arc_inverse(pts, fine, n)
+
+
+@numba.njit(**_JIT)
+def arc_inverse(pts, fine, n):
+    """Angles of ``n`` points evenly spaced in arc length along the polyline ``pts (F, 2)``
+    sampled at the angles ``fine (F,)``: arc length as ``concatenate(([0],
+    cumsum(norm(diff(pts)))))``, inverted at ``linspace(0, arc[-1], n, endpoint=False)`` as
+    ``np.interp`` does, operation for operation (``Squircle.boundary_points``; perception's
+    compiled twin uses it too)."""
+    F = len(fine)
     arc = np.empty(F)
     arc[0] = 0.0
     for k in range(1, F):

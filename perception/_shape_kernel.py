@@ -40,7 +40,7 @@ import math
 import numba
 import numpy as np
 
-from navigation._geom_kernel import _arr
+from navigation._geom_kernel import _arr, arc_inverse, points_into
 
 __all__ = ["boundary_points", "gauge_any_inside", "clear_of", "spacing", "gauge", "radial_error", "rect_test",
            "contain", "component_labels",
@@ -64,75 +64,24 @@ def local_xy(qx, qy, cx, cy, c, sn, a, b):
 def gauge_xy(x2, y2, k):
     """The gauge ``sqrt(beta + 1)`` at squared normalised coordinates ``x2, y2`` (``k = 2 - 4 s^2``)."""
     return math.sqrt(0.5 * (x2 + y2 + math.sqrt(max(x2 * x2 + y2 * y2 + k * x2 * y2, 0.0))))
+
+
 _FINE: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
-
-
-@numba.njit(**_JIT)
-def _points_into(out, ux, uy, cx, cy, hw, hh, ct, st, s2):
-    """``Squircle.point_at`` of the angles with cosines ``ux`` and sines ``uy`` into ``out``."""
-    for i in range(len(ux)):
-        m = ux[i] * uy[i]
-        rho = math.sqrt(2.0 / (1.0 + math.sqrt(max(1.0 - 4.0 * s2 * m * m, 0.0))))
-        lx = rho * ux[i] * hw
-        ly = rho * uy[i] * hh
-        out[i, 0] = cx + ct * lx - st * ly
-        out[i, 1] = cy + st * lx + ct * ly
 
 
 @numba.njit(**_JIT)
 def _psi_kernel(ux, uy, fine, cx, cy, hw, hh, ct, st, s2, n):
     """Angles of ``n`` boundary points evenly spaced in arc length (``boundary_points`` up to the
-    final ``point_at``)."""
-    m_ = len(fine)
-    pts = np.empty((m_, 2))
-    _points_into(pts, ux, uy, cx, cy, hw, hh, ct, st, s2)
-    arc = np.empty(m_)
-    arc[0] = 0.0
-    for k in range(1, m_):
-        dx = pts[k, 0] - pts[k - 1, 0]
-        dy = pts[k, 1] - pts[k - 1, 1]
-        seg = math.sqrt(dx * dx + dy * dy)
-        arc[k] = seg if k == 1 else arc[k - 1] + seg
-    last = arc[m_ - 1]
-    step = last / n
-    psi = np.empty(n)
-    j = 0
-    for i in range(n):
-        if step == 0.0:  # np.linspace's branch for a zero step
-            x = (i / n) * last + 0.0
-        else:
-            x = i * step + 0.0
-        if math.isnan(x):
-            psi[i] = x
-            continue
-        # np.interp: j = index of the last sample <= x (the targets increase)
-        if x < arc[0]:
-            psi[i] = fine[0]
-            continue
-        if x > arc[m_ - 1]:
-            psi[i] = fine[m_ - 1]
-            continue
-        while j + 1 < m_ and arc[j + 1] <= x:
-            j += 1
-        if j == m_ - 1:
-            psi[i] = fine[j]
-        elif arc[j] == x:
-            psi[i] = fine[j]
-        else:
-            slope = (fine[j + 1] - fine[j]) / (arc[j + 1] - arc[j])
-            r = slope * (x - arc[j]) + fine[j]
-            if math.isnan(r):
-                r = slope * (x - arc[j + 1]) + fine[j + 1]
-                if math.isnan(r) and fine[j] == fine[j + 1]:
-                    r = fine[j]
-            psi[i] = r
-    return psi
+    final ``point_at``): the navigation kernel's ``arc_inverse`` over this module's points."""
+    pts = np.empty((len(fine), 2))
+    points_into(pts, ux, uy, cx, cy, hw, hh, ct, st, s2)
+    return arc_inverse(pts, fine, n)
 
 
 @numba.njit(**_JIT)
 def _points_kernel(ux, uy, cx, cy, hw, hh, ct, st, s2):
     out = np.empty((len(ux), 2))
-    _points_into(out, ux, uy, cx, cy, hw, hh, ct, st, s2)
+    points_into(out, ux, uy, cx, cy, hw, hh, ct, st, s2)
     return out
 
 
