@@ -24,7 +24,7 @@ whose command changed by more than 0.1 m/s in ``v`` or 0.6 rad/s in ``omega`` (t
 mode's bound, ``DV_BOUND`` / ``DOMEGA_BOUND``; 0 expected in that mode). ``--push-forward`` runs the controller with
 ``ControllerConfig(push_forward=True)`` and ``--standoff D`` with ``ControllerConfig(standoff=D)``
 (``--standoff 0``: the controller without the stand-off; docs/control.md), ``--rate-limited``
-with the rate-limited mode (``RATE_LIMITED``); the crawl guard
+with the rate-limited mode (``navigation.control.RATE_LIMITED``); the crawl guard
 then engages ``standoff=0.03`` only while the robot crawls. Also the median
 time of one controller step (field, Jacobian, command) with its target <= 2 ms.
 Results: ``<out>/control.json`` and ``<out>/control.md`` (also printed); progress on stderr.
@@ -42,7 +42,7 @@ from pathlib import Path
 import numpy as np
 
 import navigation
-from navigation.control import ControllerConfig, track
+from navigation.control import RATE_LIMITED, ControllerConfig, track
 from navigation.tracker import CrawlConfig, Tracker
 from navigation.oriented import OrientedField, wrap_angle
 from service.sim import Simulator
@@ -54,10 +54,8 @@ __all__ = ["main", "run", "render_markdown", "STEP_TARGET"]
 
 STEP_TARGET = 2e-3
 POS_TOL, HEADING_TOL, MAX_TIME = 0.05, 0.1, 120.0
-#: the controller's rate-limited mode (navigation/control.py, docs/control.md)
-RATE_LIMITED = {"accel_max": 1.0, "alpha_max": 6.0, "brake_share": 0.5}
 #: the issue's bounded change per 0.1 s step (the rate-limited mode's limits), counted in every mode
-DV_BOUND, DOMEGA_BOUND = 0.1, 0.6
+DV_BOUND, DOMEGA_BOUND = 0.1 * RATE_LIMITED["accel_max"], 0.1 * RATE_LIMITED["alpha_max"]
 CHATTER_FLAG = 1.0  #: chatter per metre above which a run is flagged (as in benchmarks.evaluation)
 
 

@@ -142,6 +142,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from types import MappingProxyType
 from typing import NamedTuple
 
 import numpy as np
@@ -150,9 +151,12 @@ from .errors import NavigationError, check_numbers
 from .oriented import BoundaryFrame, OrientedField, wrap_angle
 
 __all__ = ["ControllerConfig", "Command", "track", "track_waypoints", "switch_weight", "safe_speed",
-           "stopping_distance", "SAFETY_HORIZON"]
+           "stopping_distance", "SAFETY_HORIZON", "RATE_LIMITED"]
 
 SAFETY_HORIZON = 0.1  #: default ``ControllerConfig.safety_horizon`` (s), the paper's control period
+#: the rate-limited mode's settings (``ControllerConfig(**RATE_LIMITED)``; see the module doc):
+#: at most 0.1 m/s and 0.6 rad/s of change per 0.1 s period, braking within half the clearance
+RATE_LIMITED = MappingProxyType({"accel_max": 1.0, "alpha_max": 6.0, "brake_share": 0.5})
 
 
 @dataclass(frozen=True, slots=True)
@@ -515,10 +519,11 @@ def _command(theta: float, tg: float, grad: np.ndarray, speed: float, clearance:
     raw = v
     prev = _previous(previous)
     limit = cfg.v_max
-    if cfg.safety_horizon > 0 and (v > 0.0 or prev is not None):
+    rate_v = prev is not None and cfg.accel_max > 0
+    if cfg.safety_horizon > 0 and (v > 0.0 or rate_v):
         limit = min(limit, safe_speed(cfg.brake_share * clearance, cfg))
     v = min(v, limit, approach)
-    if prev is not None and cfg.accel_max > 0:
+    if rate_v:
         pv, _, dt = prev
         dv = cfg.accel_max * dt
         # the rate limit, within [0, v_max] and the safety limit (which it never has to
@@ -547,10 +552,10 @@ def _clearance(q: np.ndarray, fields, cfg: ControllerConfig) -> float:
         return math.inf
     cap = stopping_distance(cfg.v_max, cfg) / cfg.brake_share  # the safety limit is v_max beyond it
     out = math.inf
-    for f in fields:
-        b = float(f.clearance(q, cap))
+    for bound in {id(f.clearance): f.clearance for f in fields}.values():  # fields of one forest share it
+        b = float(bound(q, cap))
         if b < EXACT_BELOW and cfg.brake_share < 1.0:
-            b = max(b, f.clearance.exact(q) - 1e-9)
+            b = max(b, bound.exact(q) - 1e-9)
         out = min(out, b)
     return out
 

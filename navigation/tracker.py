@@ -29,7 +29,7 @@ from collections import deque
 from dataclasses import dataclass, replace
 
 
-from .control import SAFETY_HORIZON, Command, ControllerConfig, _pose, track_waypoints
+from .control import Command, ControllerConfig, _horizon, _pose, track_waypoints
 from .errors import NavigationError, check_numbers
 from .oriented import OrientedField
 
@@ -166,7 +166,7 @@ class Tracker:
         s = self._sent
         if s is not None and 0.0 <= t - s[0] <= self.max_gap:
             return s[1], s[2], t - s[0]
-        return 0.0, 0.0, self.config.safety_horizon or SAFETY_HORIZON  # from rest
+        return 0.0, 0.0, _horizon(self.config)  # from rest, one period ago
 
     def command(self, t: float, pose, current: OrientedField, following: OrientedField | None = None) -> Command:
         """The command for ``pose = (x, y, theta)`` at time ``t`` (s) towards ``current``

@@ -122,12 +122,11 @@ def _executive_config(a):
     ``--accel-max`` or ``--alpha-max`` is given, else the defaults (``None``)."""
     if a.accel_max is None and a.alpha_max is None:
         return None
-    from navigation.control import ControllerConfig
+    from navigation.control import RATE_LIMITED, ControllerConfig
     from tamp.executive import ExecutiveConfig
 
-    return ExecutiveConfig(controller=ControllerConfig(
-        accel_max=1.0 if a.accel_max is None else a.accel_max,
-        alpha_max=6.0 if a.alpha_max is None else a.alpha_max, brake_share=0.5))
+    given = {k: v for k, v in (("accel_max", a.accel_max), ("alpha_max", a.alpha_max)) if v is not None}
+    return ExecutiveConfig(controller=ControllerConfig(**{**RATE_LIMITED, **given}))
 
 
 def _setup(a):

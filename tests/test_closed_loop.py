@@ -37,12 +37,12 @@ import numpy as np
 import pytest
 
 import navigation
-from navigation.control import ControllerConfig
+from navigation.control import RATE_LIMITED, ControllerConfig
 from navigation.tracker import Tracker
 from navigation.oriented import OrientedField
 
 from .conftest import shared_world
-from .test_control import RATE_LIMITED, run_closed_loop
+from .test_control import run_closed_loop
 from .worldgen import random_forest_world, random_free_points
 
 MAX_TIME, DT = 120.0, 0.1  # simulated seconds per run, control period

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 import navigation
-from navigation.control import ControllerConfig, safe_speed, stopping_distance, switch_weight, track
+from navigation.control import (RATE_LIMITED, ControllerConfig, safe_speed, stopping_distance, switch_weight,
+                                track)
 from navigation.errors import NavigationError
 from navigation.oriented import OrientedField, wrap_angle
 from navigation.tracker import Tracker
@@ -113,7 +114,6 @@ W1, W2 = np.array([2.0, 0.55]), np.array([3.5, 1.7])
 # the "bounded change per step": the rate-limited mode's accel_max (1 m/s^2) and
 # alpha_max (6 rad/s^2) over the 0.1 s period
 DV_BOUND, DOMEGA_BOUND = 0.1, 0.6
-RATE_LIMITED = {"accel_max": 1.0, "alpha_max": 6.0, "brake_share": 0.5}  # docs/control.md
 
 
 def _drive_two_waypoints(cfg, max_steps=1200):

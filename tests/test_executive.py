@@ -252,11 +252,11 @@ def test_rate_limited_controller_option_drives_a_mission_with_bounded_changes():
     command the executive sends is within 0.1 m/s and 0.6 rad/s of the one before (the braking-aware
     safety limit never had to override the rate limit, the stops included); the robot's limits
     come from the world, not from the given config."""
-    from navigation.control import ControllerConfig
+    from navigation.control import RATE_LIMITED, ControllerConfig
 
     with pytest.raises(TampError, match="controller"):
         ExecutiveConfig(controller={"accel_max": 1.0})
-    cfg = ExecutiveConfig(controller=ControllerConfig(accel_max=1.0, alpha_max=6.0, brake_share=0.5))
+    cfg = ExecutiveConfig(controller=ControllerConfig(**RATE_LIMITED))
     world = shared_world("simple")
     ex = Executive(world, config=cfg)
     assert ex.control.v_max == world.robot.v_max and ex.control.accel_max == 1.0

@@ -11,7 +11,7 @@ import pytest
 
 import navigation
 from navigation import CrawlConfig, CrawlGuard, Tracker
-from navigation.control import ControllerConfig, track_waypoints
+from navigation.control import RATE_LIMITED, ControllerConfig, track_waypoints
 from navigation.errors import NavigationError
 from navigation.oriented import OrientedField
 
@@ -126,7 +126,7 @@ def test_rate_limited_tracker_starts_from_rest_follows_what_was_sent_and_restart
     world = shared_world("office")
     r = world.robot.radius
     field = OrientedField(navigation.NavigationFunction(world, goal=(6.4, 3.3), inflation=r), heading=0.0)
-    cfg = ControllerConfig.from_robot(world.robot, accel_max=1.0, alpha_max=6.0, brake_share=0.5)
+    cfg = ControllerConfig.from_robot(world.robot, **RATE_LIMITED)
     pose = (3.0, 2.2, 2.5)  # open space, facing away from the field: eq. 24 asks for a hard turn
     tr = Tracker(cfg, crawl=None)
     first = tr.command(0.0, pose, field)
