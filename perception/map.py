@@ -887,23 +887,37 @@ class ObstacleMap:
         if self._trim_regions(new_ids, proposed, changed, removed):
             # decompose rather than uncover: returns a trim left outside the cluster's estimates
             # (a piece that bridged free space around the region) get estimates of their own
-            ids = [i for i in cl.ids if i in proposed]
-            err = (np.min([radial_error(proposed[i].squircle, q) for i in ids], axis=0) if ids
-                   else np.full(len(q), np.inf))
-            lost = err > self.config.refit_tol
-            if np.count_nonzero(lost):
-                extra = fit_cluster(q[lost], views=v[lost], free=free, config=self.config, split=not cl.single,
-                                    grow=1.05 * self.radius)
-                add = []
-                for f in extra:
-                    i = self._next_id
-                    self._next_id += 1
-                    proposed[i] = Estimate(i, f.squircle, inflate(f.squircle, self.radius), lab, f.rms, f.closed)
-                    changed.add(i)
-                    add.append(i)
-                cl.ids.extend(add)
-                self.stats["recovered"] += int(np.count_nonzero(lost))
-                self._trim_regions(add, proposed, changed, removed)
+            add = self._recover(lab, proposed, changed, (q, v, free))
+            self._trim_regions(add, proposed, changed, removed)
+
+    def _recover(self, lab: int, proposed: dict, changed: set, data=None) -> list[int]:
+        """Returns of cluster ``lab`` that its estimates (after a trim) leave more than
+        ``refit_tol`` outside, fitted with ``fit_cluster`` as estimates of their own; returns
+        the new ids. ``data``: the cluster's ``(q, v, free)`` when already at hand."""
+        cl = self._clusters.get(lab)
+        if cl is None:
+            return []
+        q, v, free = self._cluster_data(lab) if data is None else data
+        if not len(q):
+            return []
+        ids = [i for i in cl.ids if i in proposed]
+        err = (np.min([radial_error(proposed[i].squircle, q) for i in ids], axis=0) if ids
+               else np.full(len(q), np.inf))
+        lost = err > self.config.refit_tol
+        if not np.count_nonzero(lost):
+            return []
+        extra = fit_cluster(q[lost], views=v[lost], free=free, config=self.config, split=not cl.single,
+                            grow=1.05 * self.radius)
+        add = []
+        for f in extra:
+            i = self._next_id
+            self._next_id += 1
+            proposed[i] = Estimate(i, f.squircle, inflate(f.squircle, self.radius), lab, f.rms, f.closed)
+            changed.add(i)
+            add.append(i)
+        cl.ids.extend(add)
+        self.stats["recovered"] += int(np.count_nonzero(lost))
+        return add
 
     def _trim_regions(self, ids, proposed, changed, removed) -> bool:
         """Trim the changed estimates ``ids`` clear of every region disc grown by the radius;
@@ -916,9 +930,15 @@ class ObstacleMap:
                         any_trim = True
         return any_trim
 
-    def _clear_robot(self, pose, proposed, changed, removed, notes) -> None:
+    def _clear_robot(self, pose, proposed, changed, removed, notes, only=None, recover: bool = True) -> None:
+        """Trim every estimate clear of the robot disc. Decompose rather than uncover (as for the
+        regions): returns a trim left more than ``refit_tol`` outside their cluster's estimates
+        (a piece that bridged the free space the robot drives through, e.g. two walls merged
+        to break a cycle) get estimates of their own, themselves trimmed clear of the robot;
+        random18 noise-free lost 4.5 % of its hit boundary points to such trims."""
         p = np.asarray(pose[:2], dtype=float)
-        for i in list(proposed):
+        trimmed = []
+        for i in list(proposed if only is None else only):
             e = proposed[i]
             if math.dist(e.inflated.center, p) > e.inflated.bounding_radius + self.radius:
                 continue
@@ -928,6 +948,14 @@ class ObstacleMap:
                 msg = self._trim(i, p, self.radius, proposed, changed, removed, "robot disc")
                 if msg:
                     notes.append(msg)
+                    trimmed.append(self._resolve(e.cluster))
+        if recover and only is None and trimmed:
+            add = []
+            for lab in dict.fromkeys(trimmed):
+                add += self._recover(lab, proposed, changed)
+            if add:
+                notes.append(f"fitted {len(add)} estimate(s) to returns a robot-disc trim left outside")
+                self._clear_robot(pose, proposed, changed, removed, notes, only=add)
 
     def _trim(self, i: int, p: np.ndarray, clearance: float, proposed, changed, removed, what: str) -> str:
         """Move the face of estimate ``i`` facing ``p`` back until the inflated estimate keeps
@@ -1358,7 +1386,7 @@ class ObstacleMap:
                     proposed.pop(i, None)
             changed, removed = set(), set()
             if pose is not None:  # the restored estimates may reach the robot's new position
-                self._clear_robot(pose, proposed, changed, removed, notes)
+                self._clear_robot(pose, proposed, changed, removed, notes, recover=False)
                 if changed and self._validate(proposed, set(changed))[0] is not None:
                     for i in changed | removed:
                         if i in self._est:
