@@ -72,6 +72,7 @@ _MAX_FREE = 200
 _LM_NFEV = 30
 _INFLATE_LINEAR = 5  # inflation steps tried in order before bisection (:func:`inflate`)
 _DISTANCE_WEIGHTS = True  # fit distances to first order (:func:`_distance_weights`), not radial errors
+_REWEIGHT_TOL = 0.1  # distance weights moving more than this during a solve: solved again with the new ones
 _SOLVER = "lm"  # "lm" (:func:`_lm`) or "scipy" (``least_squares``, trust region reflective)
 
 
@@ -436,6 +437,17 @@ def _solve(seed: np.ndarray, q: np.ndarray, free: np.ndarray, cfg: PerceptionCon
             x, fun = res.x, res.fun
         else:
             x, fun = _lm(x0, lo, hi, scale, (q, free, 1.0, ref, wq))
+            if wq is not None and np.isfinite(x).all():
+                # the weights are constants of a solve: taken at the seed, they leave part of the
+                # radial error's bias (a centre farther behind a face shortens the radial errors
+                # near the face's ends), and a face seen from one side came out thick (simple
+                # noisy: 0.36 m for a 0.2 m wall). One more solve from the solution with the
+                # weights there, when they moved
+                w1 = _distance_weights(x, q)
+                if float(np.max(np.abs(w1 - wq))) > _REWEIGHT_TOL:
+                    x1, fun1 = _lm(np.clip(x, lo + 1e-9, hi - 1e-9), lo, hi, scale, (q, free, 1.0, ref, w1))
+                    if np.isfinite(x1).all():
+                        x, fun, wq = x1, fun1, w1
     except (ValueError, np.linalg.LinAlgError):
         return None
     if not np.isfinite(x).all():
@@ -856,8 +868,12 @@ def _cycle_basis(adj: dict[int, list[int]]) -> list[list[int]]:
 def _break_cycles(q, vw, free, fits: list[Fit], cfg: PerceptionConfig, grow: float, init=None,
                   cache=None) -> list[Fit]:
     """Merge pieces until the pieces grown by ``grow`` (the robot radius) overlap as a tree:
-    in the smallest cycle, the two overlapping pieces whose union one rectangle explains best
-    become one piece, refitted to their points."""
+    in the smallest cycle, every overlapping pair is refitted as one piece, and the one whose
+    fit swallows the fewest free points deeper than ``free_tol``, then explains its points
+    (the decomposition's criterion), then has the union one rectangle explains best, becomes
+    one piece. Chosen by the rectangle alone, a wall merged with a corner piece of its
+    neighbour at a junction came out thick over the free space beside it (``random17``
+    noise-free: four walls 0.15-0.26 m thick fitted 0.33-0.38 m, IoU 0.628 -> 0.839)."""
     fits = list(fits)
     fr = None if free is None or not len(free) else np.asarray(free, dtype=float)
     memo: dict[tuple[int, int], tuple] = {}  # overlaps of pairs of squircles (kept alive here)
@@ -894,18 +910,21 @@ def _break_cycles(q, vw, free, fits: list[Fit], cfg: PerceptionConfig, grow: flo
             f = fits[k]
             fits[k] = Fit(f.squircle, f.rms, f.closed, np.concatenate((f.indices, keep_idx)), f.p95)
             continue
-        # merge the overlapping pair whose union one rectangle explains best, counting the
-        # free space its rectangle would swallow (the faces of one wall, not two walls)
+        # merge the overlapping pair whose fit keeps the free space free and explains its
+        # points, then whose union one rectangle explains best, counting the free space its
+        # rectangle would swallow (the faces of one wall, not two walls)
         best = None
         for a in cyc:
             for b in cyc:
                 if a < b and b in adj[a]:
                     idx = np.concatenate((fits[a].indices, fits[b].indices))
-                    c = _piece_cost(q[idx], fr, cfg.free_cell) / len(idx)
+                    f = _fit_piece(q, vw, fr, idx, cfg, init, cache)
+                    explains = f.rms <= cfg.split_tol and f.p95 <= 3 * cfg.split_tol
+                    deep = 0 if fr is None else int(np.count_nonzero(radial_error(f.squircle, fr) < -cfg.free_tol))
+                    c = (deep, not explains, _piece_cost(q[idx], fr, cfg.free_cell) / len(idx))
                     if best is None or c < best[0]:
-                        best = (c, a, b, idx)
-        _, a, b, idx = best
-        f = _fit_piece(q, vw, fr, idx, cfg, init, cache)
+                        best = (c, a, b, idx, f)
+        _, a, b, idx, f = best
         fits[a] = Fit(f.squircle, f.rms, f.closed, idx, f.p95)
         del fits[b]
     return fits
