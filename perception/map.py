@@ -18,7 +18,8 @@ The map starts knowing only the workspace and grows from scans:
    would soon leave the inflated estimate) refits at once; other contradictions make the
    cluster pending: refitted at most once every 5 scans, together with a scan that refits
    anyway (one forest check), or alone after 20 scans (up to 4 times longer for free space
-   that the last refits could not clear). The cluster is fitted by
+   that the last refits could not clear; such a futile refit, and a repair merging two
+   estimates, leave the cluster pending). The cluster is fitted by
    :func:`perception.fit.fit_cluster` (one squircle or a decomposition), extended through the
    workspace boundary when it touches it (walls on the boundary).
 5. **Clearances**: an estimate is trimmed (the face towards the disc moved back, the far side
@@ -877,12 +878,16 @@ class ObstacleMap:
         cl.ids = new_ids
         cl.failed_at = 0
         cl.last_fit = self.scans
-        cl.pending = False
         cl.by_points = False
         ids = [i for i in new_ids if i in proposed]
         deep = bool(len(free) and ids) and any(
             float(radial_error(proposed[i].squircle, free).min()) < -self.config.free_tol for i in ids)
         cl.futile = cl.futile + 1 if deep else 0
+        # a futile refit stays pending (refitted after the backoff's wait): the free cells it
+        # left inside its estimates are old, no new free cell would mark it again, and its
+        # estimates stayed as they were for the rest of a drive (random17 noisy: 169 free cells
+        # inside one estimate, not refitted in its last 100 scans)
+        cl.pending = deep
         # regions: keep their discs (grown by the radius) free
         if self._trim_regions(new_ids, proposed, changed, removed):
             # decompose rather than uncover: returns a trim left outside the cluster's estimates
@@ -1350,6 +1355,11 @@ class ObstacleMap:
             for _, _, a, b in sorted(cands):
                 if self._merge(proposed, a, b, changed, removed):
                     notes.append(f"merged estimates {a} and {b} (cycle)")
+                    # the cover of the pair may hold free space its pieces kept free: the
+                    # cluster is refitted once due (pending), not left as merged
+                    cl = self._clusters.get(self._resolve(proposed[a].cluster))
+                    if cl is not None:
+                        cl.pending = True
                     return True
             return False
         return False
