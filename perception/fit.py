@@ -868,7 +868,9 @@ def _cycle_basis(adj: dict[int, list[int]]) -> list[list[int]]:
 def _break_cycles(q, vw, free, fits: list[Fit], cfg: PerceptionConfig, grow: float, init=None,
                   cache=None) -> list[Fit]:
     """Merge pieces until the pieces grown by ``grow`` (the robot radius) overlap as a tree:
-    in the smallest cycle, every overlapping pair is refitted as one piece, and the one whose
+    in the smallest cycle, a piece whose points the others contain is dropped, unless the best
+    merge (below) swallows no free point and leaves less obstacle area; else every
+    overlapping pair is refitted as one piece, and the one whose
     fit swallows the fewest free points deeper than ``free_tol``, then explains its points
     (the decomposition's criterion), then has the union one rectangle explains best, becomes
     one piece. Chosen by the rectangle alone, a wall merged with a corner piece of its
@@ -902,17 +904,12 @@ def _break_cycles(q, vw, free, fits: list[Fit], cfg: PerceptionConfig, grow: flo
             if float(err.max()) <= cfg.inside_tol:
                 drop = a
                 break
-        if drop is not None:
-            keep_idx = fits[drop].indices
-            del fits[drop]
-            # its points stay explained: give them to the piece that contains them best
-            k = int(np.argmin([radial_error(f.squircle, q[keep_idx]).max() for f in fits]))
-            f = fits[k]
-            fits[k] = Fit(f.squircle, f.rms, f.closed, np.concatenate((f.indices, keep_idx)), f.p95)
-            continue
-        # merge the overlapping pair whose fit keeps the free space free and explains its
+        # else merge the overlapping pair whose fit keeps the free space free and explains its
         # points, then whose union one rectangle explains best, counting the free space its
-        # rectangle would swallow (the faces of one wall, not two walls)
+        # rectangle would swallow (the faces of one wall, not two walls); a drop unless that
+        # merge, swallowing no free space, leaves less obstacle area: a redundant piece is
+        # also dropped when the piece covering it is the one fitted too thick (simple noisy:
+        # the right face of a wall dropped inside its left face's 0.33 m deep piece)
         best = None
         for a in cyc:
             for b in cyc:
@@ -924,6 +921,18 @@ def _break_cycles(q, vw, free, fits: list[Fit], cfg: PerceptionConfig, grow: flo
                     c = (deep, not explains, _piece_cost(q[idx], fr, cfg.free_cell) / len(idx))
                     if best is None or c < best[0]:
                         best = (c, a, b, idx, f)
+        if drop is not None:
+            area = sum(g.squircle.area for g in fits)
+            c, a, b, idx, f = best
+            if c[0] > 0 or area - fits[a].squircle.area - fits[b].squircle.area + f.squircle.area >= \
+                    area - fits[drop].squircle.area:
+                keep_idx = fits[drop].indices
+                del fits[drop]
+                # its points stay explained: give them to the piece that contains them best
+                k = int(np.argmin([radial_error(g.squircle, q[keep_idx]).max() for g in fits]))
+                g = fits[k]
+                fits[k] = Fit(g.squircle, g.rms, g.closed, np.concatenate((g.indices, keep_idx)), g.p95)
+                continue
         _, a, b, idx, f = best
         fits[a] = Fit(f.squircle, f.rms, f.closed, idx, f.p95)
         del fits[b]
