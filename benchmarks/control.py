@@ -101,11 +101,14 @@ def _worlds(n_random: int):
 
 def _world_row(job) -> dict:
     """Closed-loop runs of one world: ``job = (name, world, starts, goals, push_forward, standoff,
-    guard)`` (``standoff=None``: the :class:`ControllerConfig` default; ``guard``: the crawl guard)."""
-    name, world, starts, goals, push_forward, standoff, guard, rate = job
+    guard, rate_limited, relax)`` (``standoff``, ``relax`` ``None``: the :class:`ControllerConfig`
+    default; ``guard``: the crawl guard)."""
+    name, world, starts, goals, push_forward, standoff, guard, rate, relax = job
     rng = np.random.default_rng(0)
     r = world.robot.radius
     extra = {} if standoff is None else {"standoff": standoff}
+    if relax is not None:
+        extra["relax"] = relax
     if rate:
         extra.update(RATE_LIMITED)
     cfg = ControllerConfig.from_robot(world.robot, push_forward=push_forward, **extra)
@@ -161,10 +164,10 @@ def _total(rows: list[dict]) -> dict:
 
 def run(*, quick: bool = False, starts: int = 10, goals: int = 2, n_random: int = 5, jobs: int = 1,
         push_forward: bool = False, standoff: float | None = None, crawl_guard: bool = True,
-        rate_limited: bool = False) -> dict:
+        rate_limited: bool = False, relax: float | None = None) -> dict:
     if quick:
         starts, goals, n_random = 2, 1, 0
-    work = [(name, world, starts, goals, push_forward, standoff, crawl_guard, rate_limited)
+    work = [(name, world, starts, goals, push_forward, standoff, crawl_guard, rate_limited, relax)
             for name, world in _worlds(n_random)
             if not quick or name == "simple"]
     if jobs > 1:
@@ -177,7 +180,7 @@ def run(*, quick: bool = False, starts: int = 10, goals: int = 2, n_random: int 
     return {"benchmark": "control", "quick": quick,
             "settings": {"starts": starts, "goals": goals, "random": n_random, "push_forward": push_forward,
                          "standoff": standoff,
-                         "crawl_guard": crawl_guard, "rate_limited": rate_limited},
+                         "crawl_guard": crawl_guard, "rate_limited": rate_limited, "relax": relax},
             "tolerances": {"position": POS_TOL, "heading": HEADING_TOL, "max_time": MAX_TIME},
             "step_target": STEP_TARGET, "worlds": rows,
             "machine": machine_info()}
@@ -194,7 +197,8 @@ def render_markdown(result: dict) -> str:
            + (" --push-forward" if st.get("push_forward") else "")
            + (f" --standoff {st['standoff']:g}" if st.get("standoff") is not None else "")
            + ("" if st.get("crawl_guard", True) else " --no-crawl-guard")
-           + (" --rate-limited" if st.get("rate_limited") else ""))
+           + (" --rate-limited" if st.get("rate_limited") else "")
+           + (f" --relax {st['relax']:g}" if st.get("relax") is not None else ""))
     lines = ["# Closed-loop controller benchmark", "",
              f"`{cmd}` "
              f"(Python {result['machine']['python']}, {result['machine']['cpus']} CPUs). Goal pose reached: "
@@ -231,14 +235,18 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="the controller's rate-limited mode (accel_max 1, alpha_max 6, brake_share 0.5)")
     parser.add_argument("--standoff", type=float, default=None,
                         help="ControllerConfig.standoff in m (0 turns the stand-off off; default: the config's)")
+    parser.add_argument("--relax", type=float, default=None,
+                        help="ControllerConfig.relax (0: track Upsilon itself; default: the config's)")
     parser.add_argument("--no-crawl-guard", action="store_true",
                         help="drive with navigation.track alone (no crawl guard, navigation.tracker)")
     args = parser.parse_args(argv)
     if args.starts < 1 or args.goals < 1 or args.random < 0 or args.jobs < 1:
         parser.error("--starts, --goals and --jobs must be >= 1 and --random >= 0")
+    if args.relax is not None and not args.relax >= 0:
+        parser.error("--relax must be >= 0")
     result = run(quick=args.quick, starts=args.starts, goals=args.goals, n_random=args.random, jobs=args.jobs,
                  push_forward=args.push_forward, standoff=args.standoff, crawl_guard=not args.no_crawl_guard,
-                 rate_limited=args.rate_limited)
+                 rate_limited=args.rate_limited, relax=args.relax)
     write_results(args.out, "control", result, render_markdown(result))
     return 0
 

@@ -38,6 +38,33 @@ Choices where the paper is silent or loose, and why:
   arrival heading, and has no folds; within ``boundary_blend`` of a grown boundary (where it
   turns tangential and the safety limit would pin the robot) it is blended smoothly into
   ``Upsilon``'s direction, which points out of the boundary there.
+* **Relaxed direction (not in the paper; opt-in: ``ControllerConfig.relax = 1.0``).** Where the
+  navigation transformation is strongly anisotropic the integral curves of ``Upsilon`` run in
+  valleys of ``phi_ONF`` a few millimetres wide (next to chained walls, at 10 cm from the
+  walls of a room), across which the direction of ``Upsilon`` reverses: a robot that takes
+  5 cm steps zigzags across the valley, turning in place at each crossing. With
+  ``relax = r > 0`` eq. 24 tracks the direction of the linearly implicit step of the
+  gradient flow instead, ``d = -(I + (s / |g|) H_+)^(-1) g`` (``g``, ``H``: gradient and
+  Hessian of ``phi_O``, :attr:`OrientedEval.potential_gradient` / ``potential_hessian``;
+  ``H_+`` its positive part; ``s = r min(v_max, k_v tanh(...)) h`` the step the robot is
+  about to take, ``h`` the safety horizon): the cross-valley component, whose Hessian
+  eigenvalue is large, is damped by ``1 / (1 + s lambda / |g|)``, the along-valley one is
+  kept, as the implicit steps of :mod:`navigation.descent` do. ``d`` is continuous,
+  ``d . (-g) = g^T M g > 0`` (``M = (I + (s / |g|) H_+)^(-1)`` is positive definite), so it
+  descends ``phi_ONF`` everywhere and keeps the goal, the boundaries' repulsion and (with
+  ``s -> 0`` as the robot slows down at the goal, ``H``'s eigenvectors aligned with the
+  dipole's axis on it) the arrival heading. The feed-forward of (24b) uses the gradient of
+  ``atan2(d)`` with ``M`` frozen over the step (``grad d = -M H``; the exact gradient would need
+  third derivatives of the chain): in a valley it is bounded by about ``1 / s`` instead of
+  ``|grad theta_gamma|`` of 10^2-10^4 rad/m. The step is capped at :data:`RELAX_ROOM` (10)
+  times the clearance ``d(q)`` of the safety limit: next to a grown boundary the Hessian's
+  normal eigenvalue grows like ``|g| / d``, and an uncapped step would damp the boundary's
+  repulsion until ``d`` looks tangential along the wall (measured: robots then slid into
+  estimates perception grew next to them); with the cap it is damped by at most ``1 / 11``, and
+  on the boundary itself ``d`` is ``Upsilon``'s direction. ``relax = 0`` is eq. 24 on
+  ``Upsilon``. Not the default: measured (docs/control.md, "Relaxed direction") it cuts
+  turn-sign flips and mission times on the random worlds, but the closed-loop benchmark loses
+  a few more runs in the trenches along chained walls and ``cluttered20``'s mission gets slower.
 * **Switch of eq. 25.** ``eta(gamma_n) = (1 + tanh(k_s (eps - gamma_n) / eps)) / 2`` with
   ``gamma_n = |q - q_n|``: the paper's ``eta_eps`` normalised by the margin so that ``k_s = 2``,
   ``eps = 0.1`` m (section 5.1) give a switch that is 0.02 at ``2 eps``, 1/2 at ``eps`` and 0.98
@@ -126,9 +153,19 @@ Choices where the paper is silent or loose, and why:
   reached) but on ``office`` the robot recirculates along room walls and bounces across
   narrow passages where ``Upsilon`` folds (99 to 92 of 100), which is why it is not the
   default.
-* **Outside free space or degenerate field.** The oriented field's outside contract gives a
-  unit vector back into free space: the controller turns towards it and only moves once it
-  faces it (heading gate). At the goal itself ``theta_gamma = theta_G``. Non-finite poses raise
+* **On or outside a grown boundary (escape).** The oriented field's outside contract gives a
+  unit vector back into free space, and on the boundary ``Upsilon`` points away from it. The
+  safety limit alone would hold a robot there still for good (its clearance is 0, e.g. after
+  perception grew an estimate up to the robot): where the clearance of the safety limit is
+  below :data:`ESCAPE_BELOW` (1 mm, or negative) and the robot faces within 45 degrees of
+  ``Upsilon``'s direction, ``v`` may be up to :data:`ESCAPE_SPEED` (2 cm/s) times the cosine
+  of that angle (still at most eq. 24a's value and the approach limit). Moving 2 mm per period
+  within 45 degrees of the outward direction increases the distance to a boundary whose
+  curvature radius is well above 2 mm (grown obstacles: at least the robot radius) to first
+  order; this creep is the one place where the limit is a first-order argument rather than a
+  certified bound. The controller turns towards ``Upsilon`` (with the relaxed direction, whose
+  step is 0 at clearance 0, that is the tracked direction there) and moves once it faces it.
+  At the goal itself ``theta_gamma = theta_G``. Non-finite poses raise
   :class:`~navigation.errors.NavigationError`; commands are always finite.
 
 A controller step is a pure function of the pose and the waypoint fields: one field
@@ -153,6 +190,7 @@ from .oriented import BoundaryFrame, OrientedField, wrap_angle
 __all__ = ["ControllerConfig", "Command", "track", "track_waypoints", "switch_weight", "safe_speed",
            "stopping_distance", "SAFETY_HORIZON", "RATE_LIMITED"]
 
+RELAX_ROOM = 10.0  #: the relaxation step is at most this many times the clearance (see the module doc)
 SAFETY_HORIZON = 0.1  #: default ``ControllerConfig.safety_horizon`` (s), the paper's control period
 #: the rate-limited mode's settings (``ControllerConfig(**RATE_LIMITED)``; see the module doc):
 #: at most 0.1 m/s and 0.6 rad/s of change per 0.1 s period, braking within half the clearance
@@ -204,7 +242,11 @@ class ControllerConfig:
     brake_share : float
         ``c`` in ``(0, 1]`` (1; the rate-limited mode: 0.5): the robot's stopping distance is at
         most this share of its clearance (:func:`safe_speed`); below 1 the clearance never
-        reaches 0, and the safety limit uses the exact clearance below :data:`EXACT_BELOW`.
+        reaches 0.
+    relax : float
+        ``r`` of the relaxed direction (see the module doc; 0, off; 1.0 is the measured setting):
+        eq. 24 tracks the direction of a linearly implicit gradient step of ``r`` times the
+        robot's next step instead of ``Upsilon``'s.
     """
 
     k_v: float = 1.0
@@ -223,11 +265,12 @@ class ControllerConfig:
     accel_max: float = 0.0
     alpha_max: float = 0.0
     brake_share: float = 1.0
+    relax: float = 0.0
 
     def __post_init__(self):
         check_numbers(self, ("k_v", "k_omega", "v_max", "omega_max", "k_switch", "switch_margin"), positive=True)
         check_numbers(self, ("safety_horizon", "boundary_blend", "standoff", "standoff_push", "standoff_gate",
-                             "accel_max", "alpha_max"), positive=False)
+                             "accel_max", "alpha_max", "relax"), positive=False)
         if not self.brake_share <= 1.0 or not self.brake_share > 0.0:
             raise NavigationError(f"ControllerConfig.brake_share must be in (0, 1], got {self.brake_share!r}")
 
@@ -281,13 +324,20 @@ def _unit_blend(t0: float, g0: np.ndarray, t1: float, g1: np.ndarray, w: float, 
     return math.atan2(b[1], b[0]), (b[0] * jb[1] - b[1] * jb[0]) / nb2
 
 
-def _direction(q: np.ndarray, field: OrientedField, cfg: ControllerConfig, band: "_Band | None"):
-    """``(theta_gamma, grad theta_gamma, tanh |q - q_G|)`` of one field: the gradient direction,
-    or with ``cfg.push_forward`` the push-forward direction blended into it next to boundaries;
-    with the stand-off, changed within its band (``band = _band(q, field, cfg)``)."""
+def _direction(q: np.ndarray, field: OrientedField, cfg: ControllerConfig, band: "_Band | None",
+               beyond: float = 0.0, room: float = math.inf):
+    """``(theta_gamma, grad theta_gamma, tanh(|q - q_G| + beyond))`` of one field: the gradient
+    direction, or with ``cfg.push_forward`` the push-forward direction blended into it next to
+    boundaries; with the stand-off, changed within its band (``band = _band(q, field, cfg)``).
+    ``beyond``: path length (m) still to go after the field's goal (see :func:`track`);
+    ``room``: the clearance, which caps the relaxation step."""
     ev = field.evaluate(q)
-    speed = math.tanh(float(np.linalg.norm(q - field.goal)))
+    speed = math.tanh(float(np.linalg.norm(q - field.goal)) + beyond)
     tg, grad = float(ev.angle), np.asarray(ev.angle_gradient, dtype=float)
+    if cfg.relax > 0 and bool(ev.free) and not bool(ev.degenerate):
+        out = _relaxed(ev, min(cfg.relax * min(cfg.v_max, cfg.k_v * speed) * _horizon(cfg), RELAX_ROOM * room))
+        if out is not None:
+            tg, grad = out
     if cfg.push_forward:
         tf, gf = float(ev.flow_angle), np.asarray(ev.flow_gradient, dtype=float)
         delta = cfg.boundary_blend
@@ -302,7 +352,26 @@ def _direction(q: np.ndarray, field: OrientedField, cfg: ControllerConfig, band:
                 tg, grad = out
     if band is not None and bool(ev.free) and not bool(ev.degenerate):
         tg, grad = _standoff(q, tg, grad, field, cfg, band)
-    return tg, grad, speed
+    return tg, grad, speed, float(ev.angle)
+
+
+def _relaxed(ev, step: float):
+    """Direction of the linearly implicit step ``d = (I + (step / |g|) H_+)^(-1) (-g)`` (``g``,
+    ``H``: gradient and Hessian of ``phi_O``; ``H_+`` its positive part) and its gradient with
+    the relaxation matrix frozen; ``None`` where it is undefined."""
+    g = np.asarray(ev.potential_gradient, dtype=float)
+    H = np.asarray(ev.potential_hessian, dtype=float)
+    ng = math.hypot(g[0], g[1])
+    if not (ng > 0.0 and step > 0.0):
+        return None
+    lam, E = np.linalg.eigh(H)
+    M = (E * (1.0 / (1.0 + (step / ng) * np.maximum(lam, 0.0)))) @ E.T
+    d = -(M @ g)
+    dd = -(M @ H)  # rows: gradients of d_x, d_y
+    n2 = float(d @ d)
+    if not n2 > 1e-300:
+        return None
+    return math.atan2(d[1], d[0]), (d[0] * dd[1] - d[1] * dd[0]) / n2
 
 
 def _smoothstep(x: float) -> tuple[float, float]:
@@ -400,23 +469,27 @@ def _standoff(q: np.ndarray, tg: float, grad: np.ndarray, field: OrientedField, 
     return math.atan2(u[1], u[0]), (u[0] * du[1] - u[1] * du[0]) / u2
 
 
-def _blend(q: np.ndarray, current: OrientedField, following: OrientedField, cfg: ControllerConfig, bands):
+def _blend(q: np.ndarray, current: OrientedField, following: OrientedField, cfg: ControllerConfig, bands,
+           beyond: float = 0.0, room: float = math.inf):
     """Eq. 25 on directions (see the module doc): direction of ``(1 - eta) u_n + eta u_{n+1}``,
     its exact gradient (the switch's gradient included) and the blended speed factor
-    (``bands``: the two fields' :func:`_band`)."""
-    t0, g0, s0 = _direction(q, current, cfg, bands[0])
+    (``bands``: the two fields' :func:`_band`; ``beyond``: path length after ``current``'s
+    goal, so ``beyond - |q_{n+1} - q_n|`` after ``following``'s)."""
+    t0, g0, s0, out0 = _direction(q, current, cfg, bands[0], beyond, room)
     diff = q - current.goal
     gamma = float(np.linalg.norm(diff))
     eta, deta = _switch(gamma, cfg)
     if eta <= 0.0:
-        return t0, g0, s0
-    t1, g1, s1 = _direction(q, following, cfg, bands[1])
+        return t0, g0, s0, out0
+    t1, g1, s1, _ = _direction(q, following, cfg, bands[1],
+                            max(0.0, beyond - float(np.linalg.norm(following.goal - current.goal))) if beyond else 0.0,
+                            room)
     grad_eta = deta * diff / gamma if gamma > 0 else np.zeros(2)
     speed = (1.0 - eta) * s0 + eta * s1
     out = _unit_blend(t0, g0, t1, g1, eta, grad_eta)
     if out is None:  # opposite directions at eta = 1/2 (measure zero): the dominant waypoint's
-        return (t1, g1, speed) if eta > 0.5 else (t0, g0, speed)
-    return (*out, speed)
+        return (t1, g1, speed, out0) if eta > 0.5 else (t0, g0, speed, out0)
+    return (*out, speed, out0)
 
 
 def _approach_limit(theta: float, bands, cfg: ControllerConfig) -> float:
@@ -507,8 +580,12 @@ def _previous(previous) -> tuple[float, float, float] | None:
     return v, w, dt
 
 
+ESCAPE_BELOW = 0.001  #: clearance (m) below which the robot may creep out along ``Upsilon``
+ESCAPE_SPEED = 0.02  #: speed (m/s) of that creep
+
+
 def _command(theta: float, tg: float, grad: np.ndarray, speed: float, clearance: float,
-             cfg: ControllerConfig, approach: float = math.inf, previous=None) -> Command:
+             cfg: ControllerConfig, approach: float = math.inf, previous=None, away: float | None = None) -> Command:
     """Eq. 24 on the direction ``tg`` (gradient ``grad``): heading gate, saturation, safety
     limit and rate limit applied to ``v`` before it enters the feed-forward term, then
     ``omega`` and its rate limit (``previous = (v, omega, dt)``, see :func:`track`)."""
@@ -523,6 +600,12 @@ def _command(theta: float, tg: float, grad: np.ndarray, speed: float, clearance:
     if cfg.safety_horizon > 0 and (v > 0.0 or rate_v):
         limit = min(limit, safe_speed(cfg.brake_share * clearance, cfg))
     v = min(v, limit, approach)
+    if away is not None and clearance < ESCAPE_BELOW and v < ESCAPE_SPEED and raw > 0.0:
+        # the safety limit holds a robot on (or inside) a grown boundary still for good; creep
+        # out while it faces within 45 degrees of Upsilon, which points away from the boundary
+        c = math.cos(wrap_angle(theta - away))
+        if c > math.sqrt(0.5):
+            v = min(max(v, ESCAPE_SPEED * c), raw, approach)
     if rate_v:
         pv, _, dt = prev
         dv = cfg.accel_max * dt
@@ -545,23 +628,26 @@ EXACT_BELOW = 0.005  #: clearance bound (m) below which the safety limit uses th
 
 def _clearance(q: np.ndarray, fields, cfg: ControllerConfig) -> float:
     """The clearance the safety limit uses: the certified bound of each field (up to 2.5 mm
-    low); with ``brake_share < 1``, where it is below :data:`EXACT_BELOW`, the exact clearance
-    (1e-9 m accurate, less that), so that a robot next to a boundary is not held by the bound's
-    slack (the clearance then provably stays positive, :func:`safe_speed`)."""
+    low); where it is below :data:`EXACT_BELOW`, the exact clearance (1e-9 m accurate, less
+    that), so that a robot next to a boundary is not held by the bound's slack: with a bound of
+    0 and an exact clearance of 2 mm the robot would stand still for good, whichever way the
+    field points (measured: executive runs stalled so). With ``brake_share < 1`` the clearance
+    then provably stays positive (:func:`safe_speed`); with ``brake_share = 1`` a step still
+    moves the robot by at most its clearance."""
     if cfg.safety_horizon <= 0:
         return math.inf
     cap = stopping_distance(cfg.v_max, cfg) / cfg.brake_share  # the safety limit is v_max beyond it
     out = math.inf
     for bound in {id(f.clearance): f.clearance for f in fields}.values():  # fields of one forest share it
         b = float(bound(q, cap))
-        if b < EXACT_BELOW and cfg.brake_share < 1.0:
+        if b < EXACT_BELOW:
             b = max(b, bound.exact(q) - 1e-9)
         out = min(out, b)
     return out
 
 
 def track(pose, field: OrientedField, config: ControllerConfig = ControllerConfig(),
-          previous=None) -> Command:
+          previous=None, beyond: float = 0.0) -> Command:
     """Eq. 24: command that tracks ``field`` from ``pose = (x, y, theta)``.
 
     ``previous = (v, omega, dt)``: the command sent ``dt`` seconds ago; the new one then
@@ -569,16 +655,33 @@ def track(pose, field: OrientedField, config: ControllerConfig = ControllerConfi
     (the rate limit; ``None``: no limit, a pure function of the pose). The safety limit and
     the saturation hold either way.
 
+    ``beyond``: path length (m) the robot still has to go after ``field``'s goal, when that goal
+    is an intermediate waypoint of a longer path (0: it is the end). Eq. 24a's speed factor is
+    then ``tanh(|q - q_G| + beyond)`` instead of ``tanh |q - q_G|``, so the robot slows down
+    for the end of its path, not for every waypoint on the way (see the module doc).
+
     Raises
     ------
     NavigationError
-        Non-finite or malformed pose or previous command.
+        Non-finite or malformed pose, previous command or ``beyond``.
     """
     q, theta = _pose(pose)
+    beyond = _beyond(beyond)
     band = _band(q, field, config)
-    tg, grad, speed = _direction(q, field, config, band)
-    return _command(theta, tg, grad, speed, _clearance(q, (field,), config), config,
-                    _approach_limit(theta, (band,), config), previous)
+    room = _clearance(q, (field,), config)
+    tg, grad, speed, away = _direction(q, field, config, band, beyond, room)
+    return _command(theta, tg, grad, speed, room, config,
+                    _approach_limit(theta, (band,), config), previous, away)
+
+
+def _beyond(beyond) -> float:
+    try:
+        b = float(beyond)
+    except (TypeError, ValueError):
+        b = math.nan
+    if not (math.isfinite(b) and b >= 0.0):
+        raise NavigationError(f"beyond must be a finite path length >= 0 (m), got {beyond!r}")
+    return b
 
 
 def switch_weight(distance: float, config: ControllerConfig = ControllerConfig()) -> float:
@@ -594,15 +697,19 @@ def _switch(gamma: float, cfg: ControllerConfig) -> tuple[float, float]:
 
 
 def track_waypoints(pose, current: OrientedField, following: OrientedField | None = None,
-                    config: ControllerConfig = ControllerConfig(), previous=None) -> Command:
+                    config: ControllerConfig = ControllerConfig(), previous=None, beyond: float = 0.0) -> Command:
     """Eq. 25: track the blend of the current and following waypoints' fields.
 
     With ``following=None`` this is :func:`track` towards ``current``; ``previous`` as there.
+    ``beyond``: path length after ``current``'s goal (through ``following``'s and on), as in
+    :func:`track`; ``following``'s speed factor uses ``beyond - |q_{n+1} - q_n|``.
     """
     q, theta = _pose(pose)
     if following is None:
-        return track(pose, current, config, previous)
+        return track(pose, current, config, previous, beyond)
+    beyond = _beyond(beyond)
     bands = (_band(q, current, config), _band(q, following, config))
-    tg, grad, speed = _blend(q, current, following, config, bands)
-    return _command(theta, tg, grad, speed, _clearance(q, (current, following), config), config,
-                    _approach_limit(theta, bands, config), previous)
+    room = _clearance(q, (current, following), config)
+    tg, grad, speed, away = _blend(q, current, following, config, bands, beyond, room)
+    return _command(theta, tg, grad, speed, room, config,
+                    _approach_limit(theta, bands, config), previous, away)

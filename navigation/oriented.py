@@ -144,6 +144,10 @@ class OrientedEval:
         at the goal and at critical points.
     flow_gradient : (N, 2)
         Exact gradient of ``flow_angle``.
+    potential_gradient, potential_hessian : (N, 2), (N, 2, 2)
+        Gradient and Hessian of the oriented potential ``phi_O`` (before the logistic) with
+        respect to ``q`` (zeros outside free space and at degenerate points); the controller's
+        relaxed direction (:mod:`navigation.control`) uses them.
     """
 
     value: np.ndarray
@@ -155,6 +159,8 @@ class OrientedEval:
     degenerate: np.ndarray
     flow_angle: np.ndarray
     flow_gradient: np.ndarray
+    potential_gradient: np.ndarray
+    potential_hessian: np.ndarray
 
 
 class BoundaryFrame(NamedTuple):
@@ -451,6 +457,8 @@ class OrientedField:
         grad_angle = np.zeros((n, 2))
         flow_angle = np.zeros(n)
         flow_gradient = np.zeros((n, 2))
+        pot_g = np.zeros((n, 2))
+        pot_h = np.zeros((n, 2, 2))
         free = np.asarray(self.nf.is_free(pts), dtype=bool).reshape(n)
         at_goal = np.linalg.norm(pts - self.goal, axis=1) < GOAL_TOLERANCE
         degenerate = at_goal & free
@@ -484,6 +492,9 @@ class OrientedField:
             ga = (-a[:, 0, None] * H[:, 1, :] + a[:, 1, None] * H[:, 0, :]) / safe[:, None]
             grad_angle[idx] = np.where(flat[:, None], 0.0, ga)
             degenerate[idx] = flat
+            ok = ~flat & np.isfinite(g).all(axis=1) & np.isfinite(H).all(axis=(1, 2))
+            pot_g[idx] = np.where(ok[:, None], g, 0.0)
+            pot_h[idx] = np.where(ok[:, None, None], H, 0.0)
             flow_angle[idx], flow_gradient[idx] = angle[idx], grad_angle[idx]
             self._flow(X, Y, fx, fy, fxx, fxy, fyy, ~flat, idx, flow_angle, flow_gradient)
         out = np.nonzero(~free)[0]
@@ -496,7 +507,7 @@ class OrientedField:
                 and np.isfinite(flow_gradient).all()):
             raise OutsideFreeSpaceError("oriented field is not finite here")  # pragma: no cover
         return OrientedEval(value, field, jac, wrap_angle(angle), grad_angle, free, degenerate,
-                            wrap_angle(flow_angle), flow_gradient)
+                            wrap_angle(flow_angle), flow_gradient, pot_g, pot_h)
 
     @staticmethod
     def _flow(X: Jet, Y: Jet, fx, fy, fxx, fxy, fyy, regular, idx, flow_angle, flow_gradient) -> None:

@@ -168,14 +168,16 @@ class Tracker:
             return s[1], s[2], t - s[0]
         return 0.0, 0.0, _horizon(self.config)  # from rest, one period ago
 
-    def command(self, t: float, pose, current: OrientedField, following: OrientedField | None = None) -> Command:
+    def command(self, t: float, pose, current: OrientedField, following: OrientedField | None = None,
+                beyond: float = 0.0) -> Command:
         """The command for ``pose = (x, y, theta)`` at time ``t`` (s) towards ``current``
-        (blended into ``following`` near ``current``'s goal, eq. 25)."""
+        (blended into ``following`` near ``current``'s goal, eq. 25; ``beyond``: the path length
+        after ``current``'s goal, :func:`~navigation.control.track`)."""
         q, _ = _pose(pose)  # the controller's pose check, before the guard records the position
         t = float(t)
         on = self.guard is not None and self.guard.update(t, q, current.goal)
         self._last = on
         cmd = track_waypoints(pose, current, following, self._engaged_config if on else self.config,
-                              previous=self._previous(t))
+                              previous=self._previous(t), beyond=beyond)
         self._sent = (t, cmd.v, cmd.omega)
         return cmd

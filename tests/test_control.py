@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 import navigation
-from navigation.control import (RATE_LIMITED, ControllerConfig, safe_speed, stopping_distance, switch_weight,
-                                track)
+from navigation.control import (ESCAPE_BELOW, ESCAPE_SPEED, EXACT_BELOW, RATE_LIMITED, ControllerConfig, _relaxed, safe_speed,
+                                stopping_distance, switch_weight, track, track_waypoints)
 from navigation.errors import NavigationError
 from navigation.oriented import OrientedField, wrap_angle
 from navigation.tracker import Tracker
@@ -256,7 +256,8 @@ def test_clearance_bound_is_a_tight_certified_lower_bound(name):
 
 
 def test_safety_limit_caps_speed_by_clearance():
-    """``v <= clearance / safety_horizon`` at every pose; next to a grown boundary the limit is
+    """``v <= clearance / safety_horizon`` at every pose (the exact clearance below ``EXACT_BELOW``,
+    where the certified bound is up to 2.5 mm low); next to a grown boundary the limit is
     what slows the robot (unlimited, eq. 24 would drive 5 cm in one step from 2.8 cm away)."""
     world = shared_world("office")
     r = world.robot.radius
@@ -265,7 +266,15 @@ def test_safety_limit_caps_speed_by_clearance():
     rng = np.random.default_rng(5)
     for s in random_free_points(world, 200, rng, margin=r + 0.005):
         cmd = track((s[0], s[1], rng.uniform(-np.pi, np.pi)), field, cfg)
-        assert 0.0 <= cmd.v <= float(field.clearance(s)) / cfg.safety_horizon + 1e-12
+        bound = float(field.clearance(s))
+        exact = field.clearance.exact(s)
+        # below EXACT_BELOW the exact clearance replaces the bound's slack; a step never exceeds it
+        c = bound if bound >= EXACT_BELOW else max(bound, exact - 1e-9)
+        if c < ESCAPE_BELOW:  # on the grown boundary: at most the escape creep
+            assert 0.0 <= cmd.v <= max(c / cfg.safety_horizon, ESCAPE_SPEED) + 1e-12
+            continue
+        assert 0.0 <= cmd.v <= c / cfg.safety_horizon + 1e-12
+        assert cmd.v * cfg.safety_horizon <= exact + 1e-9
     unlimited = ControllerConfig.from_robot(world.robot, safety_horizon=0.0)
     pose = (3.5, 0.13, 1.0)
     assert float(field.clearance(pose[:2])) < 0.03
@@ -373,7 +382,7 @@ def test_standoff_direction_gradient_matches_finite_differences(push_forward):
         if push_forward and c < cfg.boundary_blend:
             continue  # the push-forward's own boundary blend treats its weight as constant
         def direction(p):
-            return _direction(p, field, cfg, _band(p, field, cfg))
+            return _direction(p, field, cfg, _band(p, field, cfg))[:3]
 
         tg, grad, _ = direction(q)
 
@@ -429,9 +438,9 @@ def test_standoff_shared_boundary_scan_gives_the_commands_of_separate_frames():
                 assert all(np.asarray(x).tobytes() == np.asarray(y).tobytes() for x, y in zip(a, b))
         acting += separate.wall is not None
         th = rng.uniform(-np.pi, np.pi)
-        tg, grad, speed = _direction(q, field, cfg, separate)
+        tg, grad, speed, away = _direction(q, field, cfg, separate)
         ref = _command(th, tg, grad, speed, _clearance(q, (field,), cfg), cfg,
-                       _approach_limit(th, (separate,), cfg))
+                       _approach_limit(th, (separate,), cfg), None, away)
         cmd = track((q[0], q[1], th), field, cfg)
         assert [float(x).hex() for x in (cmd.v, cmd.omega, cmd.theta_gamma)] == \
             [float(x).hex() for x in (ref.v, ref.omega, ref.theta_gamma)] and cmd.clipped == ref.clipped
@@ -458,3 +467,114 @@ def test_standoff_limits_the_approach_to_a_boundary():
         assert cmd.v <= float(field.clearance(q)) / cfg.safety_horizon + 1e-12
         limited += 1
     assert limited >= 20
+
+
+def _office_field(goal=(6.4, 3.3), heading=0.4):
+    world = shared_world("office")
+    return world, OrientedField(navigation.NavigationFunction(world, goal=goal, inflation=world.robot.radius),
+                                heading=heading)
+
+
+def test_relaxed_direction_descends_and_its_gradient_is_exact_for_the_frozen_relaxation():
+    """The relaxed direction ``d = -(I + (s / |g|) H_+)^(-1) g`` descends ``phi_ONF`` (``d .
+    Upsilon > 0``) at every regular free point, is the gradient direction for ``s = 0`` and
+    turns away from the stiff eigen-direction of ``H`` as ``s`` grows; its gradient is the exact
+    gradient of ``atan2(M g(q))`` with the relaxation matrix ``M`` frozen at the point."""
+    world, field = _office_field()
+    rng = np.random.default_rng(12)
+    pts = random_free_points(world, 200, rng, margin=world.robot.radius + 0.005)
+    h = 1e-6
+    checked = regular = 0
+    for q in pts:
+        ev = field.evaluate(q)
+        if ev.degenerate or not ev.free:
+            continue
+        regular += 1
+        assert _relaxed(ev, 0.0) is None
+        tg, grad = _relaxed(ev, 0.05)
+        d = np.array([math.cos(tg), math.sin(tg)])
+        assert float(d @ ev.field) > 0.0
+        tiny, _ = _relaxed(ev, 1e-12)
+        assert abs(wrap_angle(tiny - ev.angle)) < 1e-6
+        g, H = ev.potential_gradient, ev.potential_hessian
+        lam, E = np.linalg.eigh(H)
+        M = (E * (1.0 / (1.0 + (0.05 / np.linalg.norm(g)) * np.maximum(lam, 0.0)))) @ E.T
+
+        def frozen(p):
+            m = -(M @ field.evaluate(p).potential_gradient)
+            return math.atan2(m[1], m[0])
+
+        fd = np.array([wrap_angle(frozen(q + e) - frozen(q - e)) / (2 * h) for e in np.eye(2) * h])
+        if np.linalg.norm(fd - grad) <= 1e-4 * (np.linalg.norm(grad) + 1.0):
+            checked += 1
+    assert regular > 150 and checked >= 0.97 * regular
+
+
+def test_relax_zero_tracks_the_gradient_direction():
+    """``relax = 0`` is eq. 24 on the direction of ``Upsilon``; with relaxation the commands stay
+    finite and within the limits and the tracked direction descends ``phi_ONF``."""
+    world, field = _office_field()
+    rng = np.random.default_rng(13)
+    plain = ControllerConfig.from_robot(world.robot, relax=0.0)
+    relaxed = ControllerConfig.from_robot(world.robot, relax=1.0)
+    for s in random_free_points(world, 100, rng, margin=world.robot.radius + 0.005):
+        pose = (s[0], s[1], rng.uniform(-np.pi, np.pi))
+        ev = field.evaluate(s)
+        assert track(pose, field, plain).theta_gamma == float(ev.angle)
+        cmd = track(pose, field, relaxed)
+        assert math.isfinite(cmd.v) and math.isfinite(cmd.omega)
+        assert 0.0 <= cmd.v <= relaxed.v_max and abs(cmd.omega) <= relaxed.omega_max
+        u = np.array([math.cos(cmd.theta_gamma), math.sin(cmd.theta_gamma)])
+        assert ev.degenerate or float(u @ ev.field) > 0.0
+
+
+def test_beyond_sets_the_speed_by_the_path_still_to_go():
+    """``beyond`` (path length after the waypoint) replaces eq. 24a's ``tanh |q - q_G|`` by
+    ``tanh(|q - q_G| + beyond)``; for the following waypoint of eq. 25 by ``beyond`` less the
+    distance between the two waypoints; a bad ``beyond`` is refused."""
+    world, field = _office_field(goal=(3.0, 2.0), heading=0.0)
+    cfg = ControllerConfig.from_robot(world.robot, k_v=0.3, safety_horizon=0.0, relax=0.0)  # k_v tanh < v_max
+    pose = (3.2, 2.0, math.pi)  # 0.2 m from the goal, facing it
+    base = track(pose, field, cfg)
+    far = track(pose, field, cfg, beyond=1.0)
+    cos = math.cos(wrap_angle(pose[2] - far.theta_gamma))
+    assert far.theta_gamma == base.theta_gamma
+    assert far.v == pytest.approx(cfg.k_v * math.tanh(0.2 + 1.0) * cos, rel=1e-12)
+    assert base.v == pytest.approx(cfg.k_v * math.tanh(0.2) * cos, rel=1e-12)
+    assert track(pose, field, cfg, beyond=0.0) == base
+    _, following = _office_field(goal=(3.0, 2.5), heading=math.pi / 2)
+    near = (3.05, 2.0, math.pi)  # within the switching margin: both fields count
+    eta = switch_weight(0.05, cfg)
+    cmd = track_waypoints(near, field, following, cfg, beyond=2.0)
+    speed = (1 - eta) * math.tanh(0.05 + 2.0) + eta * math.tanh(math.hypot(0.05, 0.5) + 2.0 - 0.5)
+    assert cmd.v == pytest.approx(cfg.k_v * speed * max(0.0, math.cos(wrap_angle(near[2] - cmd.theta_gamma))), rel=1e-12)
+    for bad in (-0.1, math.nan, math.inf, "far"):
+        with pytest.raises(NavigationError, match="beyond"):
+            track(pose, field, cfg, beyond=bad)
+    assert Tracker(cfg, crawl=None).command(0.0, pose, field, beyond=1.0) == far
+
+
+def test_a_robot_on_or_inside_a_grown_boundary_creeps_out_only_facing_away():
+    """Clearance 0 (inside obstacle 0 of ``simple`` grown by the robot radius, 5 cm from the
+    true obstacle): facing within 45 degrees of ``Upsilon`` the robot creeps out at
+    ``ESCAPE_SPEED`` times the cosine; facing along or into the boundary it stands (and turns)."""
+    world = shared_world("simple")
+    nf = navigation.NavigationFunction(world, goal=(3.0, 2.0), inflation=world.robot.radius)
+    field = OrientedField(nf, heading=0.5)
+    cfg = ControllerConfig.from_robot(world.robot)
+    q = np.array([1.25, 1.5])  # obstacle 0: a 0.4 m square centred at (1.0, 1.5)
+    assert not nf.is_free(q)
+    out = float(field.evaluate(q).angle)
+    assert abs(wrap_angle(out)) < 0.3  # back into free space: about +x
+    for dth, moves in [(0.0, True), (0.5, True), (1.0, False), (math.pi / 2, False), (math.pi, False)]:
+        cmd = track((q[0], q[1], out + dth), field, cfg)
+        if moves:
+            assert cmd.v == pytest.approx(ESCAPE_SPEED * math.cos(dth), rel=1e-9), dth
+        else:
+            assert cmd.v == 0.0, dth
+        assert dth == 0.0 or cmd.omega * dth < 0  # turns towards the way out
+    # just outside the grown boundary (clearance 0.5 mm): the creep, not the 5 mm/s of the limit
+    p = np.array([1.3005, 1.5])
+    assert 0.0 < float(field.clearance(p)) < 1e-3
+    cmd = track((p[0], p[1], float(field.evaluate(p).angle)), field, cfg)
+    assert cmd.v == pytest.approx(ESCAPE_SPEED, rel=1e-6)

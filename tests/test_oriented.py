@@ -289,3 +289,25 @@ def test_repeated_chain_and_clearance_queries_return_fresh_copies_of_the_same_nu
     a_ref = a.copy()
     a[:] = -1.0
     assert np.array_equal(bound(pts, 0.5), a_ref) and bound(pts[0], 0.5) == a_ref[0]
+
+
+@pytest.mark.parametrize("name,seed", [("office", None), (None, 2)])
+def test_potential_gradient_and_hessian_match_the_field_and_finite_differences(name, seed):
+    """``potential_gradient`` is ``grad phi_O`` (parallel to ``-Upsilon``, the logistic only
+    scales it) and ``potential_hessian`` its exact Jacobian."""
+    world = _world(name, seed)
+    rng = np.random.default_rng(4)
+    field = _field(world, rng)
+    pts = random_free_points(world, 200, rng, margin=0.02)
+    ev = field.evaluate(pts)
+    ok = ~ev.degenerate
+    g = ev.potential_gradient[ok]
+    cos = -np.einsum("ni,ni->n", g, ev.field[ok]) / (np.linalg.norm(g, axis=1) * np.linalg.norm(ev.field[ok], axis=1))
+    assert np.all(cos > 1 - 1e-9)
+    h = 1e-6
+    fd = np.stack([(field.evaluate(pts + e).potential_gradient - field.evaluate(pts - e).potential_gradient) / (2 * h)
+                   for e in np.eye(2) * h], axis=2)
+    H = ev.potential_hessian
+    assert np.allclose(H, np.swapaxes(H, 1, 2))
+    err = np.abs(fd - H).max(axis=(1, 2)) / (np.abs(H).max(axis=(1, 2)) + 1e-12)
+    assert np.median(err[ok]) < 1e-6 and np.mean(err[ok] < 1e-4) > 0.97, f"max relative error {err[ok].max():.2e}"
