@@ -234,6 +234,13 @@ class ExecutiveConfig:
         random5 10.23 -> 10.07 m (the stall guard and re-planning already end most crawls
         there), while in the closed-loop controller benchmark it lifts the reach rate
         (docs/control.md, "Crawl guard").
+    speed_to_leg_end : bool
+        Eq. 24a's speed factor from the path length still to go along the leg (through the
+        remaining waypoints to the region) instead of the distance to the current waypoint
+        (``beyond`` of :func:`navigation.track`): the robot slows down for the region, not for
+        every waypoint of the tree. Off by default (measured in docs/executive.md: faster on
+        most random worlds, but ``cluttered20``'s mission then stalls at a lidar return its
+        estimates leave outside, the motion guard's known limitation).
     controller : navigation.ControllerConfig or None
         Gains and modes of the unicycle controller (eq. 24-25), e.g. the rate-limited mode for a
         robot with acceleration limits (``ControllerConfig(accel_max=1.0, alpha_max=6.0,
@@ -259,6 +266,7 @@ class ExecutiveConfig:
     guard_margin: float | None = 0.005
     guard_horizon: float = 0.1
     crawl_guard: CrawlConfig | None = None
+    speed_to_leg_end: bool = False
     controller: ControllerConfig | None = None
 
     def __post_init__(self):
@@ -934,7 +942,12 @@ class Executive:
             goal = (c[0], c[1], math.atan2(c[1] - p[1], c[0] - p[0]))
             res = self._tree(p, goal)
             self._start_pair[b] = res
-            if isinstance(res, Exception):
+            if isinstance(res, NoTreePathError) and res.reason is TreeFailure.START_BLOCKED:
+                # the robot stands where no tree can start (an estimate grown over its
+                # position); the leg then heads for the region directly (_set_leg), so the
+                # transition keeps the straight-line cost instead of walling the region off
+                nm.set_cost(Node(START, 0), b, math.dist(p[:2], c), symmetric=False)
+            elif isinstance(res, Exception):
                 nm.remove_edge(Node(START, 0), b, symmetric=False)
             else:
                 # region name: the tree cost is the translational part, w |dtheta| is added
@@ -1139,7 +1152,7 @@ class Executive:
             fol = self._field(self.leg[self.wp + 1])
         # crawl guard: the stand-off while the robot crawls (navigation.tracker)
         try:
-            cmd = self._tracker.command(self.time, p, cur, fol)
+            cmd = self._tracker.command(self.time, p, cur, fol, self._beyond())
         except NavigationError as err:
             self._note(f"controller refused the pose: {err}")
             return 0.0, 0.0
@@ -1164,6 +1177,13 @@ class Executive:
         else:
             self._stalled = 0
         return cmd.v, cmd.omega
+
+    def _beyond(self) -> float:
+        """Path length (m) of the leg after the current waypoint (``speed_to_leg_end``; else 0)."""
+        if not self.config.speed_to_leg_end or self.wp + 1 >= len(self.leg):
+            return 0.0
+        pts = np.asarray([w[:2] for w in self.leg[self.wp:]], dtype=float)
+        return float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
 
     def _guard(self, p, v: float, w: float) -> float:
         """The speed ``v`` (turn rate ``w``) limited so that the robot disc, over the next

@@ -104,6 +104,26 @@ def test_walled_off_region_blocks_and_stops():
     _check_run(run_mission(_corridor(0.6), max_time=200))
 
 
+def test_a_robot_inside_a_grown_obstacle_is_not_blocked_and_creeps_out():
+    """A robot whose position lies inside an obstacle grown by its radius (an estimate grown up
+    to it, or here a known obstacle 5 cm away) cannot start a harmonic tree; the region it heads
+    for is not walled off for that (its transition keeps the straight-line cost), and the
+    controller's escape creeps it out along the field until the trees can start again."""
+    world = shared_world("simple")
+    ex = Executive(world, known=True)
+    x, y, th = 1.25, 1.5, 0.0  # 5 cm from obstacle 0 (a 0.4 m square at (1.0, 1.5)), robot radius 0.1 m
+    r = world.robot.radius
+    d0 = float(world.obstacles[0].distance((x, y)))
+    for k in range(100):
+        res = ex.tick({"stamp": 0.1 * k, "x": x, "y": y, "theta": th}, now=0.1 * k)
+        assert res.status["state"] == "executing", res.status["message"]
+        assert math.isfinite(res.v) and math.isfinite(res.omega) and res.v >= 0.0
+        x, y, th = x + 0.1 * res.v * math.cos(th), y + 0.1 * res.v * math.sin(th), th + 0.1 * res.omega
+        if float(world.obstacles[0].distance((x, y))) > r + 0.01:
+            break
+    assert float(world.obstacles[0].distance((x, y))) > r + 0.01 > d0, (x, y, ex.messages)
+
+
 def test_blocked_executive_resumes_when_the_mission_changes():
     world = _corridor(0.24)
     ex = Executive(world)
@@ -243,6 +263,21 @@ def test_crawl_guard_option_is_validated_and_drives_a_mission():
     with pytest.raises(TampError, match="crawl_guard"):
         ExecutiveConfig(crawl_guard=0.03)
     r = run_mission(_gap_world(), max_time=200, config=ExecutiveConfig(crawl_guard=CrawlConfig()))
+    assert r["completed"] and r["collisions"] == 0 and r["bad_commands"] == 0
+
+
+def test_speed_to_leg_end_drives_a_mission_and_measures_the_rest_of_the_leg():
+    """With ``speed_to_leg_end`` the controller's ``beyond`` is the leg's path length after the
+    current waypoint (0 on the last one), and the mission completes safely."""
+    world = _gap_world()
+    ex = Executive(world, config=ExecutiveConfig(speed_to_leg_end=True))
+    ex.leg = ((0.0, 0.0, 0.0), (1.0, 0.0, 0.0), (1.0, 2.0, 0.0), (4.0, 6.0, 0.0))
+    ex.wp = 1
+    assert ex._beyond() == pytest.approx(2.0 + 5.0)
+    ex.wp = 3
+    assert ex._beyond() == 0.0
+    assert Executive(world)._beyond() == 0.0  # off by default
+    r = run_mission(world, max_time=200, config=ExecutiveConfig(speed_to_leg_end=True))
     assert r["completed"] and r["collisions"] == 0 and r["bad_commands"] == 0
 
 
