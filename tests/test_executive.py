@@ -693,6 +693,35 @@ def test_motion_guard_keeps_the_disc_off_the_returns(heading):
     assert ex._guard(far, 0.5, 0.0) == 0.5  # nothing within reach
 
 
+def test_motion_guard_hold_ends_in_a_slide_around_the_return():
+    """A post of returns that no estimate covers stands across the straight way to ``a``: the
+    field leads the robot into it and the motion guard holds it; after ``GUARD_HOLD_TICKS`` held
+    ticks the robot slides around it (turning away, slowly, within the guard), and the mission
+    completes with the disc never closer to a return than the guard allows."""
+    from tamp.executive import GUARD_HOLD_TICKS
+
+    world = _open_corridor()
+    ex = Executive(world, "F a", known=True)
+    ys = np.linspace(0.68, 0.82, 15)
+    post = np.stack((np.full_like(ys, 1.0), ys), 1)
+    ex.omap = _Returns(post)
+    x, y, th = 0.5, 0.75, 0.0
+    r, m = ex.radius, ex.config.guard_margin
+    closest, held = np.inf, 0
+    for k in range(900):
+        res = ex.tick({"stamp": 0.1 * k, "x": x, "y": y, "theta": th}, now=0.1 * k)
+        if ex.state is ExecutiveState.DONE:
+            break
+        assert math.isfinite(res.v) and math.isfinite(res.omega)
+        for _ in range(10):  # the period's arc, finely
+            x, y, th = x + 0.01 * res.v * math.cos(th), y + 0.01 * res.v * math.sin(th), th + 0.01 * res.omega
+            closest = min(closest, float(np.min(np.hypot(post[:, 0] - x, post[:, 1] - y))) - r)
+        held = max(held, ex._held)
+    assert ex.state is ExecutiveState.DONE, (x, y, ex.messages[-5:])
+    assert held >= GUARD_HOLD_TICKS and any("sliding around it" in msg for msg in ex.messages)
+    assert closest >= m - 2e-3, closest
+
+
 def test_motion_guard_ignores_returns_inside_an_estimate():
     # the same wall, covered by an estimate (its face on the returns): the navigation function
     # keeps the robot off it; the guard must not close a narrow passage
