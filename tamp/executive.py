@@ -176,6 +176,8 @@ _GUARD_COVER_TOL = 0.002
 GUARD_HOLD_TICKS = 10  #: ticks the motion guard holds the robot before it slides around the return
 GUARD_SLIDE_TIME = 2.0  #: seconds of a slide (Executive._slid)
 GUARD_SLIDE_SPEED = 0.1  #: m/s at most during a slide
+GUARD_SAME_SPOT = 0.05  #: returns this close (m) count as the same spot for repeated holds
+GUARD_PHANTOM_RADIUS = 0.002  #: radius (m) of the disc the roadmaps avoid at a return that held the robot twice
 
 
 @dataclass(frozen=True, slots=True)
@@ -539,6 +541,8 @@ class Executive:
         self._held_now = False
         self._blocker = None  # the return that held it last
         self._slide = (-math.inf, 0.0)  # (until, turn sign) of a slide around that return
+        self._slid_at: list = []  # the returns slides started at
+        self._phantoms: list = []  # returns the roadmaps avoid (GUARD_PHANTOM_RADIUS discs)
 
     # ------------------------------------------------------------------ public
     def request(self, formula, mode=MissionMode.REPLACE, *, regions=None) -> Plan:
@@ -834,33 +838,7 @@ class Executive:
                 self._model[("estimate", i)] = est[i].squircle
         for i in upd.removed:
             self._model.pop(("estimate", i), None)
-        if changed:
-            # the current leg (from the waypoint being tracked on) and every evaluated tree
-            paths = []
-            if self.leg and self.state is ExecutiveState.EXECUTING:
-                paths.append((None, None, np.array([w[:2] for w in self.leg[max(self.wp - 1, 0):]])))
-            for store in (self._pair, self._start_pair):
-                paths += [(store, key, tree.positions) for key, tree in store.items()
-                          if not isinstance(tree, Exception)]
-            paths = [(store, key, pts) for store, key, pts in paths if len(pts) >= 2]
-            # a shape whose bounding disc grown by r + margin reaches no segment cannot hit one:
-            # only the others are grown (``inflate``, about 1.5 ms a shape) for the exact test
-            margin = self.radius + self.config.check_margin
-            near = []
-            if paths:
-                a = np.concatenate([pts[:-1] for _, _, pts in paths])
-                b = np.concatenate([pts[1:] for _, _, pts in paths])
-                centres = np.array([sq.center for sq in changed], dtype=float)
-                reach = np.array([sq.bounding_radius for sq in changed]) + margin
-                dist = _point_segment_distance(centres, a, b)  # (segments, shapes)
-                near = [sq for k, sq in enumerate(changed) if (dist[:, k] <= reach[k]).any()]
-            if near:
-                rows = pack([inflate(sq, margin) for sq in near])
-                for store, key, pts in paths:
-                    if not segments_clear(rows, pts[:-1], pts[1:]).all():
-                        self._need_plan = True
-                        if store is not None:  # an evaluated transition loses its evaluation
-                            del store[key]
+        self._invalidate(changed)
         if stale or self.state is ExecutiveState.BLOCKED:
             # shapes shrank or moved: blocked transitions may have reopened
             blocked = [k for k, t in self._pair.items() if isinstance(t, Exception)]
@@ -873,6 +851,39 @@ class Executive:
                         roads.reset()
                 self._need_plan = True
         self._map_time = time.perf_counter() - t0
+
+
+    def _invalidate(self, changed) -> None:
+        """Trees and the current leg that a changed shape (``changed``: squircles new to the
+        obstacle model) now blocks lose their evaluation, and a re-plan is asked for."""
+        if not changed:
+            return
+        # the current leg (from the waypoint being tracked on) and every evaluated tree
+        paths = []
+        if self.leg and self.state is ExecutiveState.EXECUTING:
+            paths.append((None, None, np.array([w[:2] for w in self.leg[max(self.wp - 1, 0):]])))
+        for store in (self._pair, self._start_pair):
+            paths += [(store, key, tree.positions) for key, tree in store.items()
+                      if not isinstance(tree, Exception)]
+        paths = [(store, key, pts) for store, key, pts in paths if len(pts) >= 2]
+        # a shape whose bounding disc grown by r + margin reaches no segment cannot hit one:
+        # only the others are grown (``inflate``, about 1.5 ms a shape) for the exact test
+        margin = self.radius + self.config.check_margin
+        near = []
+        if paths:
+            a = np.concatenate([pts[:-1] for _, _, pts in paths])
+            b = np.concatenate([pts[1:] for _, _, pts in paths])
+            centres = np.array([sq.center for sq in changed], dtype=float)
+            reach = np.array([sq.bounding_radius for sq in changed]) + margin
+            dist = _point_segment_distance(centres, a, b)  # (segments, shapes)
+            near = [sq for k, sq in enumerate(changed) if (dist[:, k] <= reach[k]).any()]
+        if near:
+            rows = pack([inflate(sq, margin) for sq in near])
+            for store, key, pts in paths:
+                if not segments_clear(rows, pts[:-1], pts[1:]).all():
+                    self._need_plan = True
+                    if store is not None:  # an evaluated transition loses its evaluation
+                        del store[key]
 
     # ------------------------------------------------------------------ progress
     def _universal(self):
@@ -1213,6 +1224,18 @@ class Executive:
             self._slide = (self.time + GUARD_SLIDE_TIME, sign)
             self._held = 0
             self._note(f"motion guard held the robot at ({self._blocker[0]:.3f}, {self._blocker[1]:.3f}): sliding around it")
+            again = any(math.dist(b, self._blocker) < GUARD_SAME_SPOT for b in self._slid_at)
+            self._slid_at.append(self._blocker)
+            if again and not any(math.dist(b, self._blocker) < GUARD_SAME_SPOT for b in self._phantoms):
+                # held at the same return after a slide: the field leads there because the
+                # estimates leave it outside, so the trees must route around it
+                self._phantoms.append(self._blocker)
+                sq = Squircle(center=self._blocker, width=2 * GUARD_PHANTOM_RADIUS, height=2 * GUARD_PHANTOM_RADIUS)
+                self._model[("guard", len(self._phantoms))] = sq
+                self._invalidate([sq])
+                self._need_plan = True
+                self._note(f"the return at ({self._blocker[0]:.3f}, {self._blocker[1]:.3f}) held the robot again: "
+                           "the harmonic trees avoid it from now on")
         w = sign * 0.5 * self.control.omega_max
         q = np.asarray(p[:2], dtype=float)
         c = float(field.clearance(q))

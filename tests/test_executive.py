@@ -722,6 +722,32 @@ def test_motion_guard_hold_ends_in_a_slide_around_the_return():
     assert closest >= m - 2e-3, closest
 
 
+def test_a_return_that_holds_the_robot_twice_is_avoided_by_the_trees():
+    """The second hold at the same return (within ``GUARD_SAME_SPOT``) puts a small disc there
+    into the roadmaps' obstacle model (not the forest), drops the trees it blocks and asks for a
+    re-plan; a third hold there adds nothing."""
+    from navigation.control import Command
+    from tamp.executive import GUARD_HOLD_TICKS
+
+    world = _open_corridor()
+    ex = Executive(world, "F a", known=True)
+    ex.omap = _Returns(np.zeros((0, 2)))
+    ex.tick({"stamp": 0.0, "x": 0.5, "y": 0.75, "theta": 0.0}, now=0.0)
+    field = ex._field(ex.leg[ex.wp])
+    cmd = Command(0.0, 0.0, 0.0, True)
+    p = (0.88, 0.75, 0.0)
+    for k, spot in enumerate([(1.0, 0.75), (1.0, 0.76), (1.01, 0.75)]):
+        ex.time += 5.0
+        ex._blocker, ex._held = spot, GUARD_HOLD_TICKS
+        ex._need_plan = False
+        out = ex._slid(p, field, cmd)
+        assert out is not None and out.omega != 0.0 and out.v >= 0.0
+        phantoms = [key for key in ex._model if key[0] == "guard"]
+        assert len(phantoms) == (0 if k == 0 else 1)
+        assert ex._need_plan == (k == 1)
+    assert ex.forest is not None and len(ex.forest.obstacles) == len(world.obstacles)
+
+
 def test_motion_guard_ignores_returns_inside_an_estimate():
     # the same wall, covered by an estimate (its face on the returns): the navigation function
     # keeps the robot off it; the guard must not close a narrow passage
