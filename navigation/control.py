@@ -188,7 +188,7 @@ from .errors import NavigationError, check_numbers
 from .oriented import BoundaryFrame, OrientedField, wrap_angle
 
 __all__ = ["ControllerConfig", "Command", "track", "track_waypoints", "switch_weight", "safe_speed",
-           "stopping_distance", "SAFETY_HORIZON", "RATE_LIMITED"]
+           "safety_limit", "stopping_distance", "SAFETY_HORIZON", "RATE_LIMITED"]
 
 RELAX_ROOM = 10.0  #: the relaxation step is at most this many times the clearance (see the module doc)
 SAFETY_HORIZON = 0.1  #: default ``ControllerConfig.safety_horizon`` (s), the paper's control period
@@ -595,10 +595,8 @@ def _command(theta: float, tg: float, grad: np.ndarray, speed: float, clearance:
         v *= max(0.0, math.cos(err))
     raw = v
     prev = _previous(previous)
-    limit = cfg.v_max
     rate_v = prev is not None and cfg.accel_max > 0
-    if cfg.safety_horizon > 0 and (v > 0.0 or rate_v):
-        limit = min(limit, safe_speed(cfg.brake_share * clearance, cfg))
+    limit = _speed_limit(clearance, cfg) if v > 0.0 or rate_v else cfg.v_max
     v = min(v, limit, approach)
     if away is not None and clearance < ESCAPE_BELOW and v < ESCAPE_SPEED and raw > 0.0:
         # the safety limit holds a robot on (or inside) a grown boundary still for good; creep
@@ -624,6 +622,21 @@ def _command(theta: float, tg: float, grad: np.ndarray, speed: float, clearance:
 
 
 EXACT_BELOW = 0.005  #: clearance bound (m) below which the safety limit uses the exact clearance
+
+
+def _speed_limit(clearance: float, cfg: ControllerConfig) -> float:
+    """The safety limit on ``v`` for the clearance ``clearance`` of :func:`_clearance`:
+    ``safe_speed(brake_share clearance)``, at most ``v_max`` (``v_max`` with the limit off)."""
+    if cfg.safety_horizon > 0:
+        return min(cfg.v_max, safe_speed(cfg.brake_share * clearance, cfg))
+    return cfg.v_max
+
+
+def safety_limit(q, fields, config: ControllerConfig = ControllerConfig()) -> float:
+    """The speed (m/s) the controller's safety limit allows at the position ``q (2,)`` for the
+    oriented ``fields`` it tracks (their grown obstacles and workspace): what a supervisor
+    that replaces a command (the executive's slide around a lidar return) must keep to."""
+    return _speed_limit(_clearance(np.asarray(q, dtype=float).reshape(2), tuple(fields), config), config)
 
 
 def _clearance(q: np.ndarray, fields, cfg: ControllerConfig) -> float:

@@ -99,7 +99,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from navigation.control import SAFETY_HORIZON, ControllerConfig, switch_weight
+from navigation.control import ControllerConfig, safety_limit, switch_weight
 from navigation.errors import ForestError, NavigationError, TampError, WorldError, check_numbers
 from navigation.forest import build_forest
 from navigation.geometry import Squircle, beta_rows, pack
@@ -538,7 +538,6 @@ class Executive:
         self.guard_stops = 0  #: ticks whose speed the motion guard reduced
         self._guard_noted = -math.inf
         self._held = 0  # consecutive ticks the motion guard held the robot
-        self._held_now = False
         self._blocker = None  # the return that held it last
         self._slide = (-math.inf, 0.0)  # (until, turn sign) of a slide around that return
         self._slid_at: list = []  # the returns slides started at
@@ -851,7 +850,6 @@ class Executive:
                         roads.reset()
                 self._need_plan = True
         self._map_time = time.perf_counter() - t0
-
 
     def _invalidate(self, changed) -> None:
         """Trees and the current leg that a changed shape (``changed``: squircles new to the
@@ -1173,9 +1171,9 @@ class Executive:
         except NavigationError as err:
             self._note(f"controller refused the pose: {err}")
             return 0.0, 0.0
-        self._held_now = False
         v_cmd = self._guard(p, cmd.v, cmd.omega)
-        self._held = self._held + 1 if self._held_now else 0
+        # held: the guard changed the speed (it only ever does so to slow down) and left ~0
+        self._held = self._held + 1 if v_cmd != cmd.v and v_cmd < 1e-3 else 0
         if v_cmd != cmd.v:
             cmd = replace(cmd, v=v_cmd)
         slide = self._slid(p, cur, cmd)
@@ -1225,7 +1223,8 @@ class Executive:
             self._held = 0
             self._note(f"motion guard held the robot at ({self._blocker[0]:.3f}, {self._blocker[1]:.3f}): sliding around it")
             again = any(math.dist(b, self._blocker) < GUARD_SAME_SPOT for b in self._slid_at)
-            self._slid_at.append(self._blocker)
+            if not again:  # one entry per spot
+                self._slid_at.append(self._blocker)
             if again and not any(math.dist(b, self._blocker) < GUARD_SAME_SPOT for b in self._phantoms):
                 # held at the same return after a slide: the field leads there because the
                 # estimates leave it outside, so the trees must route around it
@@ -1237,13 +1236,10 @@ class Executive:
                 self._note(f"the return at ({self._blocker[0]:.3f}, {self._blocker[1]:.3f}) held the robot again: "
                            "the harmonic trees avoid it from now on")
         w = sign * 0.5 * self.control.omega_max
-        q = np.asarray(p[:2], dtype=float)
-        c = float(field.clearance(q))
-        v = min(GUARD_SLIDE_SPEED, c / SAFETY_HORIZON if c > 0 else 0.0)
-        v = self._guard(p, v, w, count=False)
-        return replace(cmd, v=v, omega=w)
+        v = min(GUARD_SLIDE_SPEED, safety_limit(p[:2], (field,), self.control))
+        return replace(cmd, v=self._guard_limit(p, v, w)[0], omega=w)
 
-    def _guard(self, p, v: float, w: float, count: bool = True) -> float:
+    def _guard(self, p, v: float, w: float) -> float:
         """The speed ``v`` (turn rate ``w``) limited so that the robot disc, over the next
         ``guard_horizon`` seconds of the arc (checked at four points along it), comes no closer
         than ``guard_margin`` to a lidar return of the last scan that no estimate covers (its
@@ -1252,13 +1248,29 @@ class Executive:
         the inflated estimates, which fit the returns only to ``refit_tol``; a face seen
         slightly outside its estimate would otherwise let the robot touch it. When the guard
         slows the robot, the clusters of the estimates there are refitted at the next scan
-        (:meth:`perception.ObstacleMap.refit_near`)."""
+        (:meth:`perception.ObstacleMap.refit_near`); the return it slowed the robot for is
+        kept for :meth:`_slid`."""
+        v_lim, ret, d0 = self._guard_limit(p, v, w)
+        if ret is None:
+            return v
+        self._blocker = (float(ret[0]), float(ret[1]))
+        self.guard_stops += 1
+        if self.omap.refit_near(ret, 0.1) and self.time - self._guard_noted >= 5.0:
+            self._guard_noted = self.time
+            self._note(f"motion guard: a return at ({ret[0]:.3f}, {ret[1]:.3f}) lies "
+                       f"{d0 - self.radius:.3f} m from the robot disc: slowed down, refitting its estimate")
+        return v_lim
+
+    def _guard_limit(self, p, v: float, w: float):
+        """The motion guard's speed for the command ``(v, w)`` (see :meth:`_guard`), without its
+        bookkeeping: ``(v, None, None)`` when it does not slow the robot, else ``(slower v, the
+        nearest uncovered return, its distance from the robot's centre)``."""
         cfg = self.config
         if cfg.guard_margin is None or v == 0.0 or self.omap is None:
-            return v
+            return v, None, None
         pts = self.omap.last_returns
         if not len(pts):
-            return v
+            return v, None, None
         T = cfg.guard_horizon
         need = self.radius + cfg.guard_margin
         reach = need + abs(v) * T
@@ -1266,7 +1278,7 @@ class Executive:
         d = np.hypot(pts[:, 0] - x, pts[:, 1] - y)
         near = d < reach + 1e-9
         if not near.any():
-            return v
+            return v, None, None
         # only the returns its estimates leave outside (by more than 2 mm): the navigation
         # function already keeps the disc off the others (they lie in an estimate, which it keeps
         # the disc off), and a narrow passage between estimates must stay open
@@ -1277,7 +1289,7 @@ class Executive:
                 covered |= radial_error(sq, q) <= _GUARD_COVER_TOL
         q, d = q[~covered], d[~covered]
         if not len(q):
-            return v
+            return v, None, None
         i = int(np.argmin(d))  # the nearest uncovered return
         d0 = float(d[i])
 
@@ -1297,21 +1309,12 @@ class Executive:
             return m >= need or m >= d0 - 1e-12
 
         if ok(1.0):
-            return v
+            return v, None, None
         lo, hi = 0.0, 1.0  # ok(0): no translation
         for _ in range(8):
             mid = 0.5 * (lo + hi)
             lo, hi = (mid, hi) if ok(mid) else (lo, mid)
-        if not count:
-            return lo * v
-        self._blocker = (float(q[i][0]), float(q[i][1]))
-        self._held_now = lo * v < 1e-3
-        self.guard_stops += 1
-        if self.omap.refit_near(q[i], 0.1) and self.time - self._guard_noted >= 5.0:
-            self._guard_noted = self.time
-            self._note(f"motion guard: a return at ({q[i][0]:.3f}, {q[i][1]:.3f}) lies "
-                       f"{d0 - self.radius:.3f} m from the robot disc: slowed down, refitting its estimate")
-        return lo * v
+        return lo * v, q[i], d0
 
     # ------------------------------------------------------------------ rotation weights
     def _edge_done(self, k: int) -> None:
