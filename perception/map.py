@@ -21,7 +21,12 @@ The map starts knowing only the workspace and grows from scans:
    that the last refits could not clear; such a futile refit, and a repair merging two
    estimates, leave the cluster pending). The cluster is fitted by
    :func:`perception.fit.fit_cluster` (one squircle or a decomposition), extended through the
-   workspace boundary when it touches it (walls on the boundary).
+   workspace boundary when it touches it (walls on the boundary): its returns within
+   ``ws_touch`` of the boundary get virtual copies just beyond it, moved along the cluster's
+   own line through them (the principal axis of its returns within ``link``; the boundary's
+   normal where they do not form a line or the line runs along the boundary), so a wall that
+   meets the boundary at an angle is continued straight instead of being widened by copies
+   shifted sideways off its faces.
 5. **Clearances**: an estimate is trimmed (the face towards the disc moved back, the far side
    kept) so that, inflated, it neither contains the robot's position (robot disc kept clear)
    nor reaches into a region disc; an estimate that cannot be trimmed is removed, logged.
@@ -826,11 +831,13 @@ class ObstacleMap:
         e_ws = radial_error(ws, q)
         near = e_ws > -cfg.ws_touch
         if near.any():
-            # virtual returns just outside, along the boundary's outward normal
+            # virtual returns just outside the boundary, continuing the faces that reach it
             qn = q[near]
             nrm = ws.gradient(qn)
             nrm = nrm / np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-12)
-            virt = qn + nrm * (-e_ws[near] + cfg.ws_touch + 0.03)[:, None]
+            step = _face_directions(q, qn, nrm, cfg.link)
+            depth = (-e_ws[near] + cfg.ws_touch + 0.03) / np.einsum("ij,ij->i", step, nrm)
+            virt = qn + step * depth[:, None]
             q = np.concatenate((q, virt))
             v = np.concatenate((v, nrm))
         return q, v, free
@@ -1418,3 +1425,36 @@ class ObstacleMap:
             if cl is not None and i not in cl.ids:
                 cl.ids.append(i)
         return added, updated, gone
+
+
+
+def _face_directions(q: np.ndarray, qn: np.ndarray, nrm: np.ndarray, reach: float) -> np.ndarray:
+    """Unit directions along which the cluster's surface through each point ``qn`` (next to
+    the workspace boundary, outward normals ``nrm``) leaves the workspace: the principal axis
+    of the cluster's points ``q`` within ``reach`` of it, oriented outwards; the normal itself
+    where those points do not form a line (fewer than 3, or a variance along the axis below 4
+    times the variance across it) or the line is more than 60 degrees from the normal (a face
+    along the boundary)."""
+    out = nrm.copy()
+    pairs = cKDTree(q).sparse_distance_matrix(cKDTree(qn), reach, output_type="coo_matrix")
+    i, k = pairs.row, pairs.col
+    m = len(qn)
+    n = np.bincount(k, minlength=m).astype(float)
+    ok = n >= 3
+    if not ok.any():
+        return out
+    nn = np.maximum(n, 1.0)
+    mx = np.bincount(k, weights=q[i, 0], minlength=m) / nn
+    my = np.bincount(k, weights=q[i, 1], minlength=m) / nn
+    dx, dy = q[i, 0] - mx[k], q[i, 1] - my[k]
+    a = np.bincount(k, weights=dx * dx, minlength=m)
+    b = np.bincount(k, weights=dx * dy, minlength=m)
+    c = np.bincount(k, weights=dy * dy, minlength=m)
+    half = np.hypot(0.5 * (a - c), b)
+    lam_hi, lam_lo = 0.5 * (a + c) + half, 0.5 * (a + c) - half
+    phi = 0.5 * np.arctan2(2.0 * b, a - c)  # the major axis
+    ax = np.stack((np.cos(phi), np.sin(phi)), axis=1)
+    cos = np.einsum("ij,ij->i", ax, nrm)
+    use = ok & (lam_hi > 4.0 * lam_lo) & (np.abs(cos) >= 0.5)
+    out[use] = ax[use] * np.sign(cos[use])[:, None]
+    return out
