@@ -850,3 +850,19 @@ def test_commit_discount_is_validated():
             ExecutiveConfig(commit_discount=bad)
     with pytest.raises(TampError, match="max_segment"):
         ExecutiveConfig(max_segment=-1.0)
+
+
+def test_a_waypoint_is_passed_within_the_tolerance_or_beyond_its_line():
+    """``_passed``: within ``waypoint_tolerance``, or within ``pass_beyond`` and beyond the line
+    through the waypoint across its heading; ``pass_beyond=0``: the tolerance only."""
+    world = _open_two_regions("F a")
+    wp = (2.0, 1.5, math.pi / 2)  # heading +y: "beyond" is y >= 1.5
+    ex = Executive(world, known=True)
+    tol = ex.config.waypoint_tolerance
+    assert ex._passed(np.array([2.1, 1.45]), wp, tol)  # within 0.15 m, before the line
+    assert ex._passed(np.array([2.25, 1.55]), wp, tol)  # 0.25 m to the side, beyond
+    assert not ex._passed(np.array([2.2, 1.4]), wp, tol)  # 0.22 m, before the line
+    assert not ex._passed(np.array([2.4, 1.6]), wp, tol)  # beyond, but 0.41 m away
+    plain = Executive(world, known=True, config=ExecutiveConfig(pass_beyond=0.0))
+    assert not plain._passed(np.array([2.25, 1.55]), wp, tol)
+    assert plain._passed(np.array([2.1, 1.45]), wp, tol)
