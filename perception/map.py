@@ -1427,7 +1427,6 @@ class ObstacleMap:
         return added, updated, gone
 
 
-
 def _face_directions(q: np.ndarray, qn: np.ndarray, nrm: np.ndarray, reach: float) -> np.ndarray:
     """Unit directions along which the cluster's surface through each point ``qn`` (next to
     the workspace boundary, outward normals ``nrm``) leaves the workspace: the principal axis

@@ -1121,13 +1121,13 @@ class Executive:
             wps = tuple(tuple(float(x) for x in w) for w in res.waypoints)
             if self.config.shortcut_legs:
                 wps = self._shortcut(wps)
-            # intermediate waypoints must lie in the forest's free space (the roadmap grows
-            # obstacles by Squircle.grow, the forest by perception.inflate: they can differ
-            # at the fallback buffer); drop those that do not, the field goes around
             # edges longer than ``max_segment`` get evenly spaced intermediate waypoints (the
             # field of a near goal runs straight to it; module doc, "Short edges")
             if self.config.max_segment > 0:
                 wps = _subdivide(wps, self.config.max_segment)
+            # intermediate waypoints must lie in the forest's free space (the roadmap grows
+            # obstacles by Squircle.grow, the forest by perception.inflate: they can differ
+            # at the fallback buffer); drop those that do not, the field goes around
             wps = (wps[0],) + tuple(w for w in wps[1:-1] if self._free(w)) + (wps[-1],)
         # headings: the robot arrives at the goal along the last segment and passes an
         # intermediate waypoint along the bisector of its two segments (see the module doc)
