@@ -1062,8 +1062,8 @@ class Executive:
             self._start_pair.clear()
             if self._commit is not None:
                 c = self.world.regions[self._commit].center
-                planner.set_cost(Node(START, 0), self._commit, self._committed(math.dist(p[:2], c)),
-                                 symmetric=False)
+                planner.set_cost(Node(START, 0), self._commit,
+                                 self._committed(math.dist(p[:2], c), self._commit), symmetric=False)
         else:
             self._commit = None
         blocked_once = False
@@ -1128,7 +1128,11 @@ class Executive:
             # intermediate waypoints must lie in the forest's free space (the roadmap grows
             # obstacles by Squircle.grow, the forest by perception.inflate: they can differ
             # at the fallback buffer); drop those that do not, the field goes around
-            wps = (wps[0],) + tuple(w for w in wps[1:-1] if self._free(w)) + (wps[-1],)
+            mid = wps[1:-1]
+            if mid:
+                keep = self._free(np.array([w[:2] for w in mid]))
+                mid = tuple(w for w, k in zip(mid, keep) if k)
+            wps = (wps[0],) + mid + (wps[-1],)
         # headings: the robot arrives at the goal along the last segment and passes an
         # intermediate waypoint along the bisector of its two segments (see the module doc)
         wps = _pass_through_headings(wps)
@@ -1187,12 +1191,15 @@ class Executive:
                    f"with the obstacles seen so far; stopped ({err})")
 
     # ------------------------------------------------------------------ control
-    def _free(self, wp) -> bool:
+    def _free(self, pts: np.ndarray) -> np.ndarray:
+        """Which of the points ``pts (N, 2)`` lie in the forest's free space (one pass over the
+        workspace and the obstacles for all of them)."""
         f = self.forest
-        x, y = np.array([wp[0]]), np.array([wp[1]])
-        if not beta_rows(pack([f.workspace]), x, y)[0] < 0:
-            return False
-        return not len(f.obstacles) or bool((beta_rows(pack(f.obstacles), x, y) > 0).all())
+        x, y = pts[:, 0], pts[:, 1]
+        free = beta_rows(pack([f.workspace]), x, y) < 0
+        if len(f.obstacles):
+            free &= (beta_rows(pack(f.obstacles), x[:, None], y[:, None]) > 0).all(axis=1)
+        return free
 
     def _field(self, wp) -> OrientedField | None:
         key = (wp, id(self.forest))
@@ -1436,11 +1443,11 @@ class Executive:
             if not isinstance(tree, Exception):
                 nm.set_cost(Node(START, 0), b, self._committed(self._tree_cost(tree), b), symmetric=False)
 
-    def _committed(self, cost: float, region: str | None = None) -> float:
-        """``cost`` of the transition from the robot to ``region`` (default: the committed
-        one) with the commitment discount when ``region`` is the region the robot was heading
-        for when the re-plan began (module doc, "Commitment")."""
-        if self._commit is None or (region is not None and region != self._commit):
+    def _committed(self, cost: float, region: str) -> float:
+        """``cost`` of the transition from the robot to ``region``, with the commitment
+        discount when ``region`` is the region the robot was heading for when the re-plan began
+        (module doc, "Commitment")."""
+        if self._commit is None or region != self._commit:
             return cost
         return (1.0 - self.config.commit_discount) * cost
 
