@@ -822,9 +822,10 @@ class ObstacleMap:
         hi = np.minimum(hi, self._fshape)
         fi, fj = np.nonzero(self._free[lo[0]:hi[0], lo[1]:hi[1]])
         free = self._lo + (np.stack((fi + lo[0], fj + lo[1]), axis=1) + 0.5) * cfg.free_cell
-        if len(free) and len(q):
+        tree = cKDTree(q) if len(q) else None  # (also for the virtual returns below)
+        if len(free) and tree is not None:
             # a free cell holding returns is not evidence (grazing beams)
-            d, _ = cKDTree(q).query(free, distance_upper_bound=cfg.free_cell)
+            d, _ = tree.query(free, distance_upper_bound=cfg.free_cell)
             free = free[~np.isfinite(d)]
         # a cluster touching the workspace boundary continues through it
         ws = self.workspace
@@ -835,7 +836,7 @@ class ObstacleMap:
             qn = q[near]
             nrm = ws.gradient(qn)
             nrm = nrm / np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-12)
-            step = _face_directions(q, qn, nrm, cfg.link)
+            step = _face_directions(tree, q, qn, nrm, cfg.link)
             depth = (-e_ws[near] + cfg.ws_touch + 0.03) / np.einsum("ij,ij->i", step, nrm)
             virt = qn + step * depth[:, None]
             q = np.concatenate((q, virt))
@@ -1427,15 +1428,15 @@ class ObstacleMap:
         return added, updated, gone
 
 
-def _face_directions(q: np.ndarray, qn: np.ndarray, nrm: np.ndarray, reach: float) -> np.ndarray:
+def _face_directions(tree: cKDTree, q: np.ndarray, qn: np.ndarray, nrm: np.ndarray, reach: float) -> np.ndarray:
     """Unit directions along which the cluster's surface through each point ``qn`` (next to
     the workspace boundary, outward normals ``nrm``) leaves the workspace: the principal axis
-    of the cluster's points ``q`` within ``reach`` of it, oriented outwards; the normal itself
-    where those points do not form a line (fewer than 3, or a variance along the axis below 4
-    times the variance across it) or the line is more than 60 degrees from the normal (a face
-    along the boundary)."""
+    of the cluster's points ``q`` (``tree``: their k-d tree) within ``reach`` of it, oriented
+    outwards; the normal itself where those points do not form a line (fewer than 3, or a
+    variance along the axis below 4 times the variance across it) or the line is more than 60
+    degrees from the normal (a face along the boundary)."""
     out = nrm.copy()
-    pairs = cKDTree(q).sparse_distance_matrix(cKDTree(qn), reach, output_type="coo_matrix")
+    pairs = tree.sparse_distance_matrix(cKDTree(qn), reach, output_type="coo_matrix")
     i, k = pairs.row, pairs.col
     m = len(qn)
     n = np.bincount(k, minlength=m).astype(float)

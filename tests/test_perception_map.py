@@ -375,6 +375,8 @@ def test_virtual_returns_continue_a_tilted_wall_through_the_boundary():
     """``_face_directions``: the returns of a wall meeting the workspace boundary at an angle
     are continued along the wall (oriented outwards), not along the boundary's normal; a face
     along the boundary, a blob and a lone pair of returns keep the normal."""
+    from scipy.spatial import cKDTree
+
     from perception.map import _face_directions
 
     rng = np.random.default_rng(4)
@@ -387,7 +389,7 @@ def test_virtual_returns_continue_a_tilted_wall_through_the_boundary():
         q = s * axis + side * across + rng.normal(0.0, 0.002, size=(120, 2))
         qn = q[q[:, 1] > -0.2]
         nrm = np.tile(up, (len(qn), 1))
-        d = _face_directions(q, qn, nrm, 0.7)  # ``link`` of the shared worlds' lidar: ~0.7 m
+        d = _face_directions(cKDTree(q), q, qn, nrm, 0.7)  # ``link`` of the shared worlds' lidar: ~0.7 m
         # the axis within 10 degrees (the wall ends at the boundary: one-sided neighbourhoods),
         # or the normal where a neighbourhood at the wall's end is too short to be a line
         along = d @ axis > math.cos(math.radians(10.0))
@@ -395,9 +397,10 @@ def test_virtual_returns_continue_a_tilted_wall_through_the_boundary():
         assert along.mean() > 0.8, (math.degrees(tilt), along.mean())
     # a face along the boundary (its line is 90 degrees from the normal): the normal
     q = np.stack((rng.uniform(-1, 1, 80), -0.05 + rng.normal(0, 0.002, 80)), axis=1)
-    assert np.array_equal(_face_directions(q, q, np.tile(up, (80, 1)), 0.3), np.tile(up, (80, 1)))
+    assert np.array_equal(_face_directions(cKDTree(q), q, q, np.tile(up, (80, 1)), 0.3), np.tile(up, (80, 1)))
     # a round blob (no line) and two returns (too few): the normal
     blob = rng.normal(0.0, 0.05, size=(60, 2))
-    assert np.array_equal(_face_directions(blob, blob[:5], np.tile(up, (5, 1)), 0.3), np.tile(up, (5, 1)))
+    assert np.array_equal(_face_directions(cKDTree(blob), blob, blob[:5], np.tile(up, (5, 1)), 0.3),
+                          np.tile(up, (5, 1)))
     two = np.array([[0.0, -0.01], [0.01, -0.02]])
-    assert np.array_equal(_face_directions(two, two, np.tile(up, (2, 1)), 0.3), np.tile(up, (2, 1)))
+    assert np.array_equal(_face_directions(cKDTree(two), two, two, np.tile(up, (2, 1)), 0.3), np.tile(up, (2, 1)))
