@@ -484,6 +484,19 @@ class ObstacleMap:
             log.info("perception: points %.3f: %s", stamp, notes[-1])
         return self._integrate(stamp, p, pts, None, notes, dropped)
 
+    def observed_free(self, q) -> np.ndarray:
+        """Which points ``q (N, 2)`` lie in a ``free_cell`` cell that a beam has crossed (the
+        free-space evidence, step 2 of the module docstring): ``(N,)`` bool, False outside the
+        grid. The executive takes a narrow passage on a long detour only through space seen
+        free (``ExecutiveConfig.seen_detour_ratio``)."""
+        q = np.asarray(q, dtype=float).reshape(-1, 2)
+        out = np.zeros(len(q), bool)
+        fin = np.isfinite(q).all(axis=1)
+        ij, ok = self._cells(np.where(fin[:, None], q, 0.0), self.config.free_cell, self._fshape)
+        ok &= fin
+        out[ok] = self._free[ij[ok, 0], ij[ok, 1]]
+        return out
+
     # ------------------------------------------------------------------ the update
     def _cells(self, q: np.ndarray, size: float, shape) -> tuple[np.ndarray, np.ndarray]:
         ij = np.floor((q - self._lo) / size).astype(np.int64)

@@ -93,6 +93,10 @@ Choices where the paper is vague, and why
   11.4 m in 47 s; ``random2`` 7.7 -> 6.6 m (but 24 -> 37 s: the robot is slower in narrow
   passages); ``random1`` 14.2 -> 15.6 m (the narrow way turned out longer once discovered);
   the 10 others unchanged. The extra tree costs re-planning time only on such transitions.
+  A passage the lidar has seen free (``perception.ObstacleMap.observed_free``) is taken on a
+  smaller saving, ``seen_detour_ratio = 1.25`` on the trees' eq. 26 costs (docs/executive.md);
+  a transition between regions keeps such a tree as a candidate, re-checked at every re-plan,
+  until its passage is seen.
 * **Known obstacles** (``known_obstacles`` in the world file, or all with ``known=True``) are
   used as given; lidar returns on them are dropped before perception (a NaN range: no return
   and no free-space evidence). When the known obstacles grown by the robot radius are not a
@@ -253,6 +257,15 @@ class ExecutiveConfig:
         fallback tree is taken when it is more than ``detour_ratio`` times shorter (a detour
         around a narrow passage that long is not worth the wider margin). ``0`` keeps the
         first tree found (the fallback only when there is no tree at ``buffer``).
+    seen_detour_ratio : float
+        The same with a smaller ratio for a narrow passage the lidar has seen: the fallback
+        tree is also taken when it is more than ``seen_detour_ratio`` times shorter and at
+        least ``seen_share`` of its stretch closer than ``buffer`` to an obstacle or the
+        boundary lies in space observed free (``perception.ObstacleMap.observed_free``; with
+        every obstacle known, always), the comparison on the trees' eq. 26 costs (a turn to
+        another side of an obstacle counts). ``0`` disables it (otherwise at least 1).
+    seen_share : float
+        See ``seen_detour_ratio`` (in ``(0, 1]``).
     guard_margin : float
         Motion guard (:meth:`Executive._guard`): a command whose next ``guard_horizon``
         seconds would bring the robot disc closer than ``guard_margin`` to a lidar return of
@@ -309,6 +322,8 @@ class ExecutiveConfig:
     weight_bounds: tuple = (0.01, 1.0)
     shortcut_legs: bool = True
     detour_ratio: float = 2.0
+    seen_detour_ratio: float = 1.25
+    seen_share: float = 0.9
     guard_margin: float | None = 0.005
     guard_horizon: float = 0.1
     crawl_guard: CrawlConfig | None = None
@@ -320,7 +335,7 @@ class ExecutiveConfig:
 
     def __post_init__(self):
         check_numbers(self, ("buffer", "fallback_buffer", "check_margin", "blocked_timeout", "detour_ratio",
-                             "guard_horizon", "max_segment", "pass_beyond"), positive=False, error=TampError)
+                             "seen_detour_ratio", "seen_share", "guard_horizon", "max_segment", "pass_beyond"), positive=False, error=TampError)
         if self.guard_margin is not None:
             check_numbers(self, ("guard_margin",), positive=False, error=TampError)
         if not (isinstance(self.waypoint_tolerance, (int, float)) and self.waypoint_tolerance > 0):
@@ -342,6 +357,10 @@ class ExecutiveConfig:
         if self.crawl_guard is not None and not isinstance(self.crawl_guard, CrawlConfig):
             raise TampError(f"ExecutiveConfig.crawl_guard must be a navigation.CrawlConfig or None, "
                             f"got {type(self.crawl_guard).__name__}")
+        if self.seen_detour_ratio and not self.seen_detour_ratio >= 1:
+            raise TampError(f"ExecutiveConfig.seen_detour_ratio must be 0 or at least 1, got {self.seen_detour_ratio!r}")
+        if not (isinstance(self.seen_share, (int, float)) and 0 < self.seen_share <= 1):
+            raise TampError(f"ExecutiveConfig.seen_share must be in (0, 1], got {self.seen_share!r}")
         if not (isinstance(self.commit_discount, (int, float)) and 0 <= self.commit_discount < 1):
             raise TampError(f"ExecutiveConfig.commit_discount must be in [0, 1), got {self.commit_discount!r}")
         if self.controller is not None and not isinstance(self.controller, ControllerConfig):
@@ -549,6 +568,9 @@ class Executive:
         self._known_letters = None
         # transitions: key (region a, region b) sorted -> tree or error; "@start" legs separately
         self._pair: dict[tuple[str, str], object] = {}
+        # pair -> (its tree, a shorter fallback tree whose narrow passage was not seen free yet)
+        self._unseen: dict[tuple[str, str], tuple] = {}
+        self._unseen_candidate = None
         self._start_pair: dict[str, object] = {}
         self._commit: str | None = None  # the region a re-plan between regions is committed to
         self.events = sorted(world.events, key=lambda e: e.time)
@@ -911,6 +933,7 @@ class Executive:
         for store in (self._pair, self._start_pair):
             paths += [(store, key, tree.positions) for key, tree in store.items()
                       if not isinstance(tree, Exception)]
+        paths += [(self._unseen, key, cand.positions) for key, (_, cand) in self._unseen.items()]
         paths = [(store, key, pts) for store, key, pts in paths if len(pts) >= 2]
         # a shape whose bounding disc grown by r + margin reaches no segment cannot hit one:
         # only the others are grown (``inflate``, about 1.5 ms a shape) for the exact test
@@ -927,7 +950,8 @@ class Executive:
             rows = pack([inflate(sq, margin) for sq in near])
             for store, key, pts in paths:
                 if not segments_clear(rows, pts[:-1], pts[1:]).all():
-                    self._need_plan = True
+                    if store is not self._unseen:  # (a blocked candidate is just dropped)
+                        self._need_plan = True
                     if store is not None:  # an evaluated transition loses its evaluation
                         del store[key]
 
@@ -968,10 +992,11 @@ class Executive:
         fallback roadmap's tree is more than ``detour_ratio`` times shorter (see the module
         doc, "Buffer fallback"); the last error when neither has a path."""
         err, best = None, None
-        ratio = self.config.detour_ratio
+        ratio, seen = self.config.detour_ratio, self.config.seen_detour_ratio
+        consider = min((r for r in (ratio, seen) if r > 0), default=0.0)
         direct = math.dist(start[:2], goal[:2])
         for roads in self._roads:
-            if best is not None and (ratio <= 0 or not best.translations.sum() > ratio * direct):
+            if best is not None and (consider <= 0 or not best.translations.sum() > consider * direct):
                 break  # no detours considered, or none can be ratio times shorter than the straight line
             try:
                 self.trees_planned += 1
@@ -982,9 +1007,49 @@ class Executive:
                     if e.reason is not TreeFailure.DISCONNECTED and roads is self._roads[-1]:
                         break
                 continue
-            if best is None or ratio * tree.translations.sum() < best.translations.sum():
+            length = tree.translations.sum()
+            if best is None or (ratio > 0 and ratio * length < best.translations.sum()):
                 best = tree
+            elif seen > 0 and seen * tree.cost < best.cost:
+                if self._seen_passage(tree):
+                    best = tree
+                else:
+                    self._unseen_candidate = tree
         return best if best is not None else err
+
+    def _seen_passage(self, tree) -> bool:
+        """The stretch of ``tree``'s path closer than ``buffer`` to an obstacle or the boundary
+        (inside the first roadmap's buffered squircles or outside its shrunk workspace), with
+        the band ``radius + fallback_buffer`` wide on both sides of it outside the known
+        shapes, lies in space the lidar has seen free, for at least ``seen_share`` of its
+        samples (every 2 cm along the path; ``ExecutiveConfig.seen_detour_ratio``)."""
+        if self.omap is None:
+            return True  # every obstacle known
+        rm = self._roads[0].rm  # as the last tree used it (bringing it up to date here would
+        if rm is None:          # change when shapes reach the roadmap, not just this test)
+            return False
+        wp = np.asarray([w[:2] for w in tree.waypoints], dtype=float)
+        seg = np.diff(wp, axis=0)
+        n = np.maximum(np.ceil(np.hypot(seg[:, 0], seg[:, 1]) / 0.02).astype(int), 1)
+        pts = np.concatenate([wp[k] + seg[k] * (np.arange(m)[:, None] / m) for k, m in enumerate(n)] + [wp[-1:]])
+        tang = np.repeat(seg / np.maximum(np.hypot(seg[:, 0], seg[:, 1]), 1e-12)[:, None], n, axis=0)
+        tang = np.concatenate((tang, tang[-1:]))
+        narrow = rm.free_workspace.beta(pts) > 0
+        for g in rm.buffered:
+            narrow |= g.beta(pts) < 0
+        if not narrow.any():
+            return True
+        # the passage, not just the path: the band the robot disc sweeps, up to the fallback
+        # clearance on both sides, where it is not inside a known shape (no unseen part of an
+        # obstacle beside the path)
+        nrm = np.stack((-tang[narrow, 1], tang[narrow, 0]), axis=1)
+        band = pts[narrow]
+        reach = self.radius + self.config.fallback_buffer
+        band = np.concatenate([band] + [band + f * reach * nrm for f in (-1.0, -0.5, 0.5, 1.0)])
+        keep = self.world.workspace.beta(band) < 0
+        for sq in rm.obstacles:
+            keep &= sq.beta(band) > 0
+        return float(np.mean(self.omap.observed_free(band[keep]))) >= self.config.seen_share if keep.any() else True
 
     def _center_pose(self, a, b):
         ca, cb = self.world.regions[a].center, self.world.regions[b].center
@@ -1020,8 +1085,11 @@ class Executive:
         if key in self._pair:
             return False
         s, g = self._center_pose(*key)
+        self._unseen_candidate = None
         res = self._tree(s, g)
         self._pair[key] = res
+        if self._unseen_candidate is not None and not isinstance(res, Exception):
+            self._unseen[key] = (res, self._unseen_candidate)  # re-checked at every re-plan
         if isinstance(res, Exception):
             nm.remove_edge(key[0], key[1])
         else:
@@ -1048,7 +1116,21 @@ class Executive:
         if self.state is ExecutiveState.EXECUTING and self.target != prev_target:
             log.info("executive: next region %s", self.target)
 
+    def _recheck_unseen(self) -> None:
+        """A transition whose shorter fallback tree was turned down because its narrow passage
+        had not been seen free takes it once the lidar has seen it (``seen_detour_ratio``),
+        while the transition still has the tree it was compared with and nothing new blocks
+        the fallback (:meth:`_invalidate` drops it then)."""
+        for key, (tree, cand) in list(self._unseen.items()):
+            if self._pair.get(key) is not tree:
+                del self._unseen[key]
+            elif self._seen_passage(cand):
+                del self._unseen[key]
+                self._pair[key] = cand
+                self.planner.navmap.set_cost(key[0], key[1], cand.cost)
+
     def _plan_lazily(self, p) -> None:
+        self._recheck_unseen()
         if self._mission_done():
             self.state, self.leg, self.target = ExecutiveState.DONE, (), None
             self._note("mission completed")

@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 
 from navigation.world import World
+from perception import ObstacleMap
 from service.sim import Simulator
 from tamp.executive import Executive, ExecutiveConfig, ExecutiveState
 from tamp.errors import LtlSyntaxError, TampError, UnknownRegionError
@@ -247,9 +248,10 @@ def _gap_world() -> World:
 def test_a_long_way_round_is_replaced_by_the_narrow_passage(ratio):
     """``detour_ratio``: the tree at the paper's buffer goes round the bottom (more than twice
     the straight line); the fallback tree through the gap is more than twice shorter and is
-    taken (default), or ignored with ``detour_ratio=0``. Either way the robot arrives without
-    touching anything."""
-    r = run_mission(_gap_world(), max_time=200, config=ExecutiveConfig(detour_ratio=ratio), record=True)
+    taken (default), or ignored with ``detour_ratio=0`` (and ``seen_detour_ratio=0``). Either
+    way the robot arrives without touching anything."""
+    cfg = ExecutiveConfig(detour_ratio=ratio, seen_detour_ratio=0.0)
+    r = run_mission(_gap_world(), max_time=200, config=cfg, record=True)
     _check_run(r)
     lowest = min(p[1] for p in r["trajectory"])
     if ratio:
@@ -258,9 +260,58 @@ def test_a_long_way_round_is_replaced_by_the_narrow_passage(ratio):
         assert r["distance"] > 4.0 and lowest < 0.7, (r["distance"], lowest)
 
 
+def _seen_gap_world() -> World:
+    """Two unknown walls across a 4 x 3 m room leave a 0.4 m gap between them (open at the
+    fallback buffer only) on the straight line from ``a`` to ``b`` (2 m) and a 0.9 m opening
+    at the bottom: the way round at the paper's buffer is about 1.5 times longer, below
+    ``detour_ratio`` but above ``seen_detour_ratio``; the robot at ``a`` sees through the gap."""
+    return World.from_dict({
+        "name": "seen-gap", "workspace": {"center": [2.0, 1.5], "width": 4.0, "height": 3.0, "s": 0.99},
+        "obstacles": [{"center": [2.0, 2.4], "width": 0.2, "height": 1.0, "s": 0.99},
+                      {"center": [2.0, 1.2], "width": 0.2, "height": 0.6, "s": 0.99}],
+        "regions": {"a": {"center": [1.0, 1.7], "radius": 0.15}, "b": {"center": [3.0, 1.7], "radius": 0.15}},
+        "robot": {"radius": 0.1, "start": [1.0, 1.7, 0.0], "v_max": 0.5, "omega_max": 1.5},
+        "lidar": {"range": 3.0, "fov": 6.283185, "beams": 360, "noise_std": 0.0, "rate_hz": 10},
+        "task": "F b"})
+
+
+@pytest.mark.parametrize("seen", [1.25, 0.0])
+def test_a_narrow_passage_seen_free_is_taken_on_a_shorter_way(seen):
+    """``seen_detour_ratio``: the walls are discovered; the way round is 1.5 times the way
+    through the gap, which the robot has seen free: taken by default, not with
+    ``seen_detour_ratio=0`` (only ``detour_ratio`` = 2 then). No contact either way."""
+    r = run_mission(_seen_gap_world(), max_time=200, config=ExecutiveConfig(seen_detour_ratio=seen), record=True)
+    _check_run(r)
+    lowest = min(p[1] for p in r["trajectory"])
+    if seen:
+        assert r["distance"] < 2.3 and lowest > 1.5, (r["distance"], lowest)
+    else:
+        assert r["distance"] > 2.8 and lowest < 0.9, (r["distance"], lowest)
+
+
+def test_a_passage_counts_as_seen_only_once_the_lidar_crossed_it():
+    """``Executive._seen_passage``: the fallback tree through the gap after the scan of the
+    start pose (the beams crossed the gap), and with a map that has seen nothing."""
+    world = _seen_gap_world()
+    ex = Executive(world)
+    sim = Simulator(world, seed=0)
+    ex.tick(sim.pose_message(), scan=sim.scan_message(), now=sim.time)  # discovers the walls
+    tree = ex._tree(tuple(world.robot.start), (3.0, 1.7, 0.0))
+    assert max(p[1] for p in tree.positions) < 1.9 and min(p[1] for p in tree.positions) > 1.5  # the gap
+    assert ex._seen_passage(tree)
+    ex.omap = ObstacleMap.from_world(world)  # the same roadmap, no free-space evidence
+    assert not ex._seen_passage(tree)
+
+
 def test_detour_ratio_is_validated():
     with pytest.raises(TampError, match="detour_ratio"):
         ExecutiveConfig(detour_ratio=-1.0)
+    with pytest.raises(TampError, match="seen_detour_ratio"):
+        ExecutiveConfig(seen_detour_ratio=0.5)
+    with pytest.raises(TampError, match="seen_share"):
+        ExecutiveConfig(seen_share=0.0)
+    with pytest.raises(TampError, match="seen_share"):
+        ExecutiveConfig(seen_share=1.5)
 
 
 def test_crawl_guard_option_is_validated_and_drives_a_mission():
@@ -666,6 +717,9 @@ class _Returns:
     def refit_near(self, q, reach):
         self.asked.append((tuple(q), reach))
         return 1
+
+    def observed_free(self, q):
+        return np.zeros(len(np.asarray(q).reshape(-1, 2)), bool)
 
 
 @pytest.mark.parametrize("heading", [0.0, 0.3, -0.5])

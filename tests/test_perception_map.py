@@ -404,3 +404,33 @@ def test_virtual_returns_continue_a_tilted_wall_through_the_boundary():
                           np.tile(up, (5, 1)))
     two = np.array([[0.0, -0.01], [0.01, -0.02]])
     assert np.array_equal(_face_directions(cKDTree(two), two, two, np.tile(up, (2, 1)), 0.3), np.tile(up, (2, 1)))
+
+
+def test_observed_free_is_where_the_beams_passed():
+    """``ObstacleMap.observed_free``: cells a beam crossed (up to ``free_margin`` before its
+    return), not the cells behind the obstacle it hit, nor points off the grid or not finite."""
+    world = _world("simple")
+    sim = Simulator(world, seed=7)
+    omap = ObstacleMap.from_world(world)
+    x, y, th = world.robot.start
+    probe = np.array([[x, y], [np.nan, y], [1e6, 1e6]])
+    assert not omap.observed_free(probe).any()  # nothing seen yet
+    pose = sim.pose_message()
+    omap.update_scan(sim.scan_message(), pose)
+    free = omap.observed_free(probe)
+    assert free.tolist() == [True, False, False]
+    # along one beam that hits an obstacle: free well before the return, not just behind it
+    ranges = np.asarray(sim.scan_message()["ranges"])
+    near = ranges < 0.8 * world.lidar.range
+    # a beam in the middle of a run of hits on one face (its neighbours' ranges close): shadow behind
+    mid = [k for k in range(3, len(ranges) - 3) if near[k - 3:k + 4].all()
+           and np.ptp(ranges[k - 3:k + 4]) < 0.05]
+    k = mid[len(mid) // 2]
+    ang = th + sim.lidar.angles()[k]
+    u = np.array([math.cos(ang), math.sin(ang)])
+    r = ranges[k]
+    before = np.array([x, y]) + u * (r - omap.config.free_margin - omap.config.free_cell * 1.5)
+    behind = np.array([x, y]) + u * (r + 0.05)
+    assert omap.observed_free(before[None])[0]
+    assert not omap.observed_free(behind[None])[0]
+    assert omap.observed_free([before, behind]).shape == (2,)
