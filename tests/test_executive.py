@@ -250,14 +250,20 @@ def test_a_long_way_round_is_replaced_by_the_narrow_passage(ratio):
     the straight line); the fallback tree through the gap is more than twice shorter and is
     taken (default), or ignored with ``detour_ratio=0`` (and ``seen_detour_ratio=0``). Either
     way the robot arrives without touching anything."""
-    cfg = ExecutiveConfig(detour_ratio=ratio, seen_detour_ratio=0.0)
-    r = run_mission(_gap_world(), max_time=200, config=cfg, record=True)
+    _through_the_gap_or_round(_gap_world(), ExecutiveConfig(detour_ratio=ratio, seen_detour_ratio=0.0),
+                              bool(ratio), short=2.5, far=4.0, below=0.7)
+
+
+def _through_the_gap_or_round(world, cfg, through: bool, *, short: float, far: float, below: float):
+    """Run ``world``'s mission: through the gap (shorter than ``short``, never below y = 1.5)
+    or round the bottom (longer than ``far``, down below y = ``below``), without contact."""
+    r = run_mission(world, max_time=200, config=cfg, record=True)
     _check_run(r)
     lowest = min(p[1] for p in r["trajectory"])
-    if ratio:
-        assert r["distance"] < 2.5 and lowest > 1.5, (r["distance"], lowest)
+    if through:
+        assert r["distance"] < short and lowest > 1.5, (r["distance"], lowest)
     else:
-        assert r["distance"] > 4.0 and lowest < 0.7, (r["distance"], lowest)
+        assert r["distance"] > far and lowest < below, (r["distance"], lowest)
 
 
 def _seen_gap_world() -> World:
@@ -280,13 +286,8 @@ def test_a_narrow_passage_seen_free_is_taken_on_a_shorter_way(seen):
     """``seen_detour_ratio``: the walls are discovered; the way round is 1.5 times the way
     through the gap, which the robot has seen free: taken by default, not with
     ``seen_detour_ratio=0`` (only ``detour_ratio`` = 2 then). No contact either way."""
-    r = run_mission(_seen_gap_world(), max_time=200, config=ExecutiveConfig(seen_detour_ratio=seen), record=True)
-    _check_run(r)
-    lowest = min(p[1] for p in r["trajectory"])
-    if seen:
-        assert r["distance"] < 2.3 and lowest > 1.5, (r["distance"], lowest)
-    else:
-        assert r["distance"] > 2.8 and lowest < 0.9, (r["distance"], lowest)
+    _through_the_gap_or_round(_seen_gap_world(), ExecutiveConfig(seen_detour_ratio=seen), bool(seen),
+                              short=2.3, far=2.8, below=0.9)
 
 
 def test_a_passage_counts_as_seen_only_once_the_lidar_crossed_it():
