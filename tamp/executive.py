@@ -1029,6 +1029,8 @@ class Executive:
         if rm is None:          # change when shapes reach the roadmap, not just this test)
             return False
         wp = np.asarray([w[:2] for w in tree.waypoints], dtype=float)
+        if len(wp) < 2:
+            return True  # no path to pass through
         seg = np.diff(wp, axis=0)
         n = np.maximum(np.ceil(np.hypot(seg[:, 0], seg[:, 1]) / 0.02).astype(int), 1)
         pts = np.concatenate([wp[k] + seg[k] * (np.arange(m)[:, None] / m) for k, m in enumerate(n)] + [wp[-1:]])
