@@ -921,3 +921,53 @@ def test_a_waypoint_is_passed_within_the_tolerance_or_beyond_its_line():
     plain = Executive(world, known=True, config=ExecutiveConfig(pass_beyond=0.0))
     assert not plain._passed(np.array([2.25, 1.55]), wp, tol)
     assert plain._passed(np.array([2.1, 1.45]), wp, tol)
+
+
+@pytest.mark.parametrize("angle, hold", [(math.pi / 3, 2.0), (math.pi / 3, 0.2), (0.0, 2.0)])
+def test_turning_onto_a_leg_on_the_spot(angle, hold):
+    """``align_angle`` / ``align_time``: a robot 80 degrees off its leg (inside eq. 24a's
+    90-degree gate, so eq. 24 alone drives off at once, on a curve) first turns on the spot
+    until within ``align_angle``, for at most ``align_time`` seconds; then eq. 24 as usual."""
+    world = _open_two_regions("F a")  # a is straight ahead to the west (heading pi)
+    cfg = ExecutiveConfig(align_angle=angle, align_time=hold)
+    ex = Executive(world, known=True, config=cfg)
+    x, y, _ = world.robot.start
+    theta = math.pi - math.radians(80)
+    t, dt, moved_at = 0.0, 0.1, None
+    for _ in range(40):
+        res = ex.tick((x, y, theta), now=t)
+        assert math.isfinite(res.v) and math.isfinite(res.omega)
+        err = abs(math.remainder(math.pi - theta, 2 * math.pi))
+        if res.v > 1e-9 and moved_at is None:
+            moved_at = (t, err)
+        if moved_at is None and angle:
+            assert res.omega > 0  # turning towards the leg (counter-clockwise)
+        x += res.v * dt * math.cos(theta)
+        y += res.v * dt * math.sin(theta)
+        theta += res.omega * dt
+        t += dt
+    assert moved_at is not None
+    t_move, err_move = moved_at
+    if angle == 0.0:
+        assert t_move == 0.0  # eq. 24 alone: off at once
+    elif hold == 2.0:
+        assert err_move <= angle + 0.05 and t_move > 0.0  # turned first (the field is near the leg's line)
+    else:
+        assert err_move > angle and t_move == pytest.approx(hold, abs=0.11)  # released by the time bound
+    assert ex.state is not ExecutiveState.BLOCKED
+
+
+def test_turning_onto_a_leg_is_validated_and_off_in_the_rate_limited_mode():
+    with pytest.raises(TampError, match="align_angle"):
+        ExecutiveConfig(align_angle=math.pi / 2)
+    with pytest.raises(TampError, match="align_angle"):
+        ExecutiveConfig(align_angle=-0.1)
+    with pytest.raises(TampError, match="align_time"):
+        ExecutiveConfig(align_time=-1.0)
+    world = _open_two_regions("F a")
+    from navigation.control import RATE_LIMITED, ControllerConfig
+
+    ex = Executive(world, known=True, config=ExecutiveConfig(controller=ControllerConfig(**RATE_LIMITED)))
+    x, y, _ = world.robot.start
+    ex.tick((x, y, math.pi - math.radians(80)), now=0.0)
+    assert ex._align_until == -math.inf
