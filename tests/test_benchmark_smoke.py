@@ -62,3 +62,33 @@ def test_control_benchmark_quick_writes_results(tmp_path, capsys):
     table = (out / "control.md").read_text()
     assert "| simple | 4 |" in table and "| all | - |" in table
     assert capsys.readouterr().out.strip() == table.strip()
+
+
+def test_executive_benchmark_quick_with_jitter_and_overrides(tmp_path, capsys):
+    """``python -m benchmarks.executive --quick --jitter 2 --set ...``: the main row, two runs
+    from jittered start poses (different from the nominal one, clear of the obstacles), the
+    overrides recorded; a bad override is a one-line error."""
+    import pytest
+
+    from benchmarks import executive as exe_bench
+
+    out = tmp_path / "results"
+    assert exe_bench.main(["--quick", "--jitter", "2", "--set", "align_angle=0", "--set", "seen_share=0.8",
+                           "--out", str(out)]) == 0
+    data = json.loads((out / "executive_quick.json").read_text())
+    assert data["config"] == {"align_angle": 0, "seen_share": 0.8}
+    (row,) = data["rows"]
+    assert row["world"] == "simple" and row["completed"] and row["collisions"] == 0
+    jit = data["jitter"]
+    assert [(r["world"], r["k"]) for r in jit] == [("simple", 1), ("simple", 2)]
+    assert all(r["completed"] and r["collisions"] == 0 and r["ratio"] > 0.9 for r in jit)
+    table = (out / "executive_quick.md").read_text()
+    assert "Jittered runs within 1.25 x their tour: " in table and '"align_angle": 0' in table
+    assert capsys.readouterr().out.strip() == table.strip()
+    world, _ = exe_bench._world("simple")
+    moved = exe_bench.jittered_start(world, 1).robot.start
+    assert moved != tuple(world.robot.start) and abs(moved[0] - world.robot.start[0]) < 0.05
+    with pytest.raises(SystemExit, match="NAME=VALUE"):
+        exe_bench.main(["--quick", "--set", "no_such_field=1", "--out", str(out)])
+    with pytest.raises(SystemExit, match="align_angle"):
+        exe_bench.main(["--quick", "--set", "align_angle=2.0", "--out", str(out)])
