@@ -1013,8 +1013,11 @@ class Executive:
     # ------------------------------------------------------------------ planning
     def _tree(self, start, goal):
         """Harmonic tree of one transition: on the first roadmap that has a path, unless the
-        fallback roadmap's tree is more than ``detour_ratio`` times shorter (see the module
-        doc, "Buffer fallback"); the last error when neither has a path."""
+        fallback roadmap's tree is more than ``detour_ratio`` times shorter, or more than
+        ``seen_detour_ratio`` times cheaper (eq. 26) through a passage the lidar has seen free
+        (:meth:`_seen_passage`; a region pair keeps one turned down for want of sight in
+        ``_unseen_candidate`` for :meth:`_evaluate`); see the module doc, "Buffer fallback".
+        The last error when neither roadmap has a path."""
         err, best = None, None
         ratio, seen = self.config.detour_ratio, self.config.seen_detour_ratio
         consider = min((r for r in (ratio, seen) if r > 0), default=0.0)
