@@ -163,7 +163,7 @@ from .harmonic_tree import NoTreePathError, RotationWeights, TreeFailure, plan_t
 from .ltl import ops
 from .navmap import START, Node
 from .planner import MissionMode, MissionPlanner, Plan
-from .roadmap import Roadmap, RoadmapConfig, _point_segment_distance, grown, segments_clear
+from .roadmap import Roadmap, RoadmapConfig, _outside_all, _point_segment_distance, grown, segments_clear
 
 __all__ = ["Executive", "ExecutiveConfig", "ExecutiveState", "TickResult", "RegionError", "RegionRule"]
 
@@ -355,7 +355,8 @@ class ExecutiveConfig:
 
     def __post_init__(self):
         check_numbers(self, ("buffer", "fallback_buffer", "check_margin", "blocked_timeout", "detour_ratio",
-                             "seen_detour_ratio", "seen_share", "align_angle", "align_time", "guard_horizon", "max_segment", "pass_beyond"), positive=False, error=TampError)
+                             "seen_detour_ratio", "seen_share", "align_angle", "align_time", "guard_horizon",
+                             "max_segment", "pass_beyond"), positive=False, error=TampError)
         if self.guard_margin is not None:
             check_numbers(self, ("guard_margin",), positive=False, error=TampError)
         if not (isinstance(self.waypoint_tolerance, (int, float)) and self.waypoint_tolerance > 0):
@@ -593,7 +594,6 @@ class Executive:
         self._pair: dict[tuple[str, str], object] = {}
         # pair -> (its tree, a shorter fallback tree whose narrow passage was not seen free yet)
         self._unseen: dict[tuple[str, str], tuple] = {}
-        self._unseen_candidate = None
         self._align_until = -math.inf
         self._start_pair: dict[str, object] = {}
         self._commit: str | None = None  # the region a re-plan between regions is committed to
@@ -1011,13 +1011,13 @@ class Executive:
             self._at_region = None
 
     # ------------------------------------------------------------------ planning
-    def _tree(self, start, goal):
+    def _tree(self, start, goal, turned_down: list | None = None):
         """Harmonic tree of one transition: on the first roadmap that has a path, unless the
         fallback roadmap's tree is more than ``detour_ratio`` times shorter, or more than
         ``seen_detour_ratio`` times cheaper (eq. 26) through a passage the lidar has seen free
-        (:meth:`_seen_passage`; a region pair keeps one turned down for want of sight in
-        ``_unseen_candidate`` for :meth:`_evaluate`); see the module doc, "Buffer fallback".
-        The last error when neither roadmap has a path."""
+        (:meth:`_seen_passage`; one turned down for want of sight is appended to
+        ``turned_down``); see the module doc, "Buffer fallback". The last error when neither
+        roadmap has a path."""
         err, best = None, None
         ratio, seen = self.config.detour_ratio, self.config.seen_detour_ratio
         consider = min((r for r in (ratio, seen) if r > 0), default=0.0)
@@ -1040,8 +1040,8 @@ class Executive:
             elif seen > 0 and seen * tree.cost < best.cost:
                 if self._seen_passage(tree):
                     best = tree
-                else:
-                    self._unseen_candidate = tree
+                elif turned_down is not None:
+                    turned_down.append(tree)
         return best if best is not None else err
 
     def _seen_passage(self, tree) -> bool:
@@ -1055,17 +1055,13 @@ class Executive:
         rm = self._roads[0].rm  # as the last tree used it (bringing it up to date here would
         if rm is None:          # change when shapes reach the roadmap, not just this test)
             return False
-        wp = np.asarray([w[:2] for w in tree.waypoints], dtype=float)
-        if len(wp) < 2:
+        if len(tree.waypoints) < 2:
             return True  # no path to pass through
-        seg = np.diff(wp, axis=0)
-        n = np.maximum(np.ceil(np.hypot(seg[:, 0], seg[:, 1]) / 0.02).astype(int), 1)
-        pts = np.concatenate([wp[k] + seg[k] * (np.arange(m)[:, None] / m) for k, m in enumerate(n)] + [wp[-1:]])
-        tang = np.repeat(seg / np.maximum(np.hypot(seg[:, 0], seg[:, 1]), 1e-12)[:, None], n, axis=0)
-        tang = np.concatenate((tang, tang[-1:]))
-        narrow = rm.free_workspace.beta(pts) > 0
-        for g in rm.buffered:
-            narrow |= g.beta(pts) < 0
+        pts = np.array([w[:2] for w in _subdivide(tree.waypoints, 0.02)], dtype=float)
+        seg = np.diff(pts, axis=0)
+        tang = seg / np.maximum(np.hypot(seg[:, 0], seg[:, 1]), 1e-12)[:, None]
+        tang = np.concatenate((tang, tang[-1:]))  # each sample: the direction of its segment
+        narrow = ~rm.safe_points(pts)
         if not narrow.any():
             return True
         # the passage, not just the path: the band the robot disc sweeps, up to the fallback
@@ -1075,9 +1071,7 @@ class Executive:
         band = pts[narrow]
         reach = self.radius + self.config.fallback_buffer
         band = np.concatenate([band] + [band + f * reach * nrm for f in (-1.0, -0.5, 0.5, 1.0)])
-        keep = self.world.workspace.beta(band) < 0
-        for sq in rm.obstacles:
-            keep &= sq.beta(band) > 0
+        keep = _outside_all(pack(list(rm.obstacles)), self.world.workspace, band)
         return float(np.mean(self.omap.observed_free(band[keep]))) >= self.config.seen_share if keep.any() else True
 
     def _center_pose(self, a, b):
@@ -1114,11 +1108,11 @@ class Executive:
         if key in self._pair:
             return False
         s, g = self._center_pose(*key)
-        self._unseen_candidate = None
-        res = self._tree(s, g)
+        down: list = []
+        res = self._tree(s, g, down)
         self._pair[key] = res
-        if self._unseen_candidate is not None and not isinstance(res, Exception):
-            self._unseen[key] = (res, self._unseen_candidate)  # re-checked at every re-plan
+        if down and not isinstance(res, Exception):
+            self._unseen[key] = (res, down[-1])  # re-checked at every re-plan
         if isinstance(res, Exception):
             nm.remove_edge(key[0], key[1])
         else:
@@ -1309,12 +1303,7 @@ class Executive:
     def _free(self, pts: np.ndarray) -> np.ndarray:
         """Which of the points ``pts (N, 2)`` lie in the forest's free space (one pass over the
         workspace and the obstacles for all of them)."""
-        f = self.forest
-        x, y = pts[:, 0], pts[:, 1]
-        free = beta_rows(pack([f.workspace]), x, y) < 0
-        if len(f.obstacles):
-            free &= (beta_rows(pack(f.obstacles), x[:, None], y[:, None]) > 0).all(axis=1)
-        return free
+        return _outside_all(pack(list(self.forest.obstacles)), self.forest.workspace, pts)
 
     def _field(self, wp) -> OrientedField | None:
         key = (wp, id(self.forest))
