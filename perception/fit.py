@@ -37,7 +37,8 @@ contradict is kept without a fit (:func:`_kept`). Then the *conservative complet
 :func:`fit_cluster` decomposes clusters a single squircle does not explain (paper 001
 section 4.2.1): when the RMS radial error exceeds ``split_tol`` the cluster is split at its
 corners - connected components, then runs of points whose local direction (principal axis of
-their neighbours) agrees modulo 90 degrees, runs that still bend cut where they bend - and the
+their neighbours) agrees modulo 90 degrees, runs that still bend cut where they bend (each side
+of a cut split into its connected components, :func:`_connected`) - and the
 runs one rectangle explains together without swallowing free space (the faces of one wall) are
 merged back; every piece is fitted on its own, and adjacent pieces overlap once inflated,
 forming a tree (docs/perception.md, "Decomposition").
@@ -637,6 +638,35 @@ def _split(points: np.ndarray, idx: np.ndarray, tol: float, min_piece: int, dept
             + _split(points, idx[~left], tol, min_piece, depth - 1, free=free, margin=margin))
 
 
+def _connected(points: np.ndarray, parts: list[np.ndarray], cfg: PerceptionConfig) -> list[np.ndarray]:
+    """``parts`` (index arrays into ``points``) split into their connected components (pairs
+    closer than ``link``): a straight cut can leave returns of two walls that do not touch on
+    one side, and such a piece is a thin rectangle across free space (random12 noisy: a 1.9 m
+    sliver of three arms of a zig-zag chain, cheap for the cut's cost because its rectangle is
+    too thin to hold a free cell). Components of fewer than ``min_piece`` returns join the piece
+    of their nearest return; a part whose components are all that small stays whole."""
+    from scipy.spatial import cKDTree
+
+    out, small = [], []
+    for p in parts:
+        comps = _components(points[p], cfg.link) if len(p) > 1 else []
+        big = [p[c] for c in comps if len(c) >= cfg.min_piece]
+        if len(comps) <= 1 or not big:
+            out.append(p)
+            continue
+        out += big
+        small += [p[c] for c in comps if len(c) < cfg.min_piece]
+    if small:
+        owner = np.repeat(np.arange(len(out)), [len(o) for o in out])
+        tree = cKDTree(points[np.concatenate(out)])
+        extra: list[list[np.ndarray]] = [[] for _ in out]
+        for c in small:
+            d, j = tree.query(points[c])
+            extra[int(owner[j[int(np.argmin(d))]])].append(c)
+        out = [np.concatenate([o] + e) if e else o for o, e in zip(out, extra)]
+    return out
+
+
 def _merge_parts(points: np.ndarray, parts: list[np.ndarray], cfg: PerceptionConfig, free=None) -> list[np.ndarray]:
     """Merge adjacent pieces whose union one rectangle explains (``rect_error <= split_tol``),
     best pair first: the recursive cuts may split a straight wall (the bar of a T, the corner
@@ -978,8 +1008,8 @@ def _runs(q: np.ndarray, cfg: PerceptionConfig, fr, depth: int, cache=None, used
             if rect_error(q[run]) <= cfg.split_tol or _ellipse_error(q[run]) <= cfg.split_tol:
                 parts.append(run)  # straight (faces of one wall) or curved (an ellipse)
             else:  # a bend the directions did not separate: cut it where it bends
-                parts.extend(_split_memo(q, run, cfg, fr, cache, used, False, lambda run=run: _split(
-                    q, run, cfg.split_tol, cfg.min_piece, depth, free=fr, margin=cfg.free_cell)))
+                parts.extend(_split_memo(q, run, cfg, fr, cache, used, False, lambda run=run: _connected(q, _split(
+                    q, run, cfg.split_tol, cfg.min_piece, depth, free=fr, margin=cfg.free_cell), cfg)))
     parts = _merge_runs(q, parts, cfg, fr)
     return parts
 
@@ -1114,8 +1144,8 @@ def fit_cluster(points, *, views=None, free=None, config: PerceptionConfig | Non
         if (len(idx) >= 2 * cfg.min_piece and (f.rms > cfg.split_tol or f.p95 > 3 * cfg.split_tol)
                 and len(fits) + len(parts) < max_pieces):
             # not one squircle yet (walls meeting at right angles): recursive cuts
-            sub = _split_memo(q, idx, cfg, fr, cache, used, True, lambda idx=idx: _merge_parts(q, _split(
-                q, idx, cfg.split_tol, cfg.min_piece, depth, force=True, free=fr, margin=cfg.free_cell), cfg, fr))
+            sub = _split_memo(q, idx, cfg, fr, cache, used, True, lambda idx=idx: _merge_parts(q, _connected(q, _split(
+                q, idx, cfg.split_tol, cfg.min_piece, depth, force=True, free=fr, margin=cfg.free_cell), cfg), cfg, fr))
             if len(sub) > 1:
                 fits.extend(_fit_piece(q, vw, fr, j, cfg, init, cache) for j in sub)
                 continue

@@ -243,3 +243,28 @@ def test_warm_start_and_piece_memo():
     assert len(first) >= 2
     assert [f.squircle for f in again] == [f.squircle for f in first]
     assert all(a.squircle is b.squircle for a, b in zip(first, again))
+
+
+def test_cut_pieces_are_split_into_connected_components():
+    """A straight cut can leave returns of walls that do not touch on one side (random12
+    noisy: a 1.9 m sliver over three arms of a zig-zag chain, too thin to hold a free cell):
+    such a piece becomes one piece per connected component; a component of fewer than
+    ``min_piece`` returns joins the piece of its nearest return, and a part made only of such
+    components stays whole."""
+    from perception.fit import _components, _connected
+
+    x = np.linspace(0.0, 0.5, 26)
+    a = np.stack((x, np.zeros_like(x)), axis=1)  # a face
+    b = a + [1.0, 0.0]  # the same line 0.5 m further: another wall
+    c = np.array([[1.8, 0.02], [1.82, 0.03]])  # two returns beyond b (too few for a piece)
+    pts = np.concatenate((a, b, c))
+    ia, ib, ic = np.arange(26), np.arange(26, 52), np.arange(52, 54)
+    parts = _connected(pts, [np.concatenate((ia, ib, ic))], CFG)
+    assert sorted(map(sorted, parts)) == [sorted(ia), sorted(np.concatenate((ib, ic)))]
+    # a piece that is one component, and tiny parts, are left as they are
+    assert [list(p) for p in _connected(pts, [ia, ic], CFG)] == [list(ia), list(ic)]
+    # every piece of a decomposition is a connected set of returns or a merge of touching ones
+    L = np.concatenate((Squircle((0.0, 0.0), 1.0, 0.2, 0.0, 0.99).boundary_points(120),
+                        Squircle((0.4, 0.5), 0.2, 0.8, 0.0, 0.99).boundary_points(100)))
+    for f in fit_cluster(L, config=CFG, grow=0.105):
+        assert len(_components(L[f.indices], 0.3)) == 1
