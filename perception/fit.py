@@ -905,7 +905,9 @@ def _break_cycles(q, vw, free, fits: list[Fit], cfg: PerceptionConfig, grow: flo
     (the decomposition's criterion), then has the union one rectangle explains best, becomes
     one piece. Chosen by the rectangle alone, a wall merged with a corner piece of its
     neighbour at a junction came out thick over the free space beside it (``random17``
-    noise-free: four walls 0.15-0.26 m thick fitted 0.33-0.38 m, IoU 0.628 -> 0.839)."""
+    noise-free: four walls 0.15-0.26 m thick fitted 0.33-0.38 m, IoU 0.628 -> 0.839). When
+    that best merge swallows free space, a piece of the cycle refitted to the returns the
+    others do not contain (:func:`_shrink`) is taken instead if it leaves the cycle."""
     fits = list(fits)
     fr = None if free is None or not len(free) else np.asarray(free, dtype=float)
     memo: dict[tuple[int, int], tuple] = {}  # overlaps of pairs of squircles (kept alive here)
@@ -951,6 +953,19 @@ def _break_cycles(q, vw, free, fits: list[Fit], cfg: PerceptionConfig, grow: flo
                     c = (deep, not explains, _piece_cost(q[idx], fr, cfg.free_cell) / len(idx))
                     if best is None or c < best[0]:
                         best = (c, a, b, idx, f)
+        if best is not None and best[0][0] > 0 and drop is None:
+            # every merge swallows free space: shrink a piece instead, refitted to its returns
+            # that no other piece contains, when that ends its overlap with a neighbour in the
+            # cycle without swallowing free space (random12 noisy: the pair merges of a zig-zag
+            # chain's cycle swallowed 300-600 free cells each)
+            shrunk = _shrink(q, vw, fr, fits, cyc, adj, cfg, grow, init, cache)
+            if shrunk is not None:
+                a, f, rest = shrunk
+                fits[a] = f
+                for k, idx_k in rest:
+                    g = fits[k]
+                    fits[k] = Fit(g.squircle, g.rms, g.closed, np.concatenate((g.indices, idx_k)), g.p95)
+                continue
         if drop is not None:
             area = sum(g.squircle.area for g in fits)
             c, a, b, idx, f = best
@@ -967,6 +982,36 @@ def _break_cycles(q, vw, free, fits: list[Fit], cfg: PerceptionConfig, grow: flo
         fits[a] = Fit(f.squircle, f.rms, f.closed, idx, f.p95)
         del fits[b]
     return fits
+
+
+def _shrink(q, vw, fr, fits: list[Fit], cyc, adj, cfg: PerceptionConfig, grow: float, init, cache):
+    """For :func:`_break_cycles`: the piece of the cycle ``cyc`` refitted to its returns that no
+    other piece contains (within ``inside_tol``) whose fit overlaps fewer of its neighbours in
+    the cycle, keeps every free cell out (none deeper than ``free_tol``) and explains its returns;
+    the smallest such piece by area. Returns ``(a, fit, [(k, indices)])`` - the returns it gave
+    up go to the piece ``k`` that contains them best - or None."""
+    best = None
+    for a in cyc:
+        idx = fits[a].indices
+        others = [k for k in range(len(fits)) if k != a]
+        err = np.array([radial_error(fits[k].squircle, q[idx]) for k in others])  # (others, points)
+        covered = err.min(axis=0) <= cfg.inside_tol
+        keep = idx[~covered]
+        if len(keep) < cfg.min_piece or len(keep) == len(idx):
+            continue
+        f = _fit_piece(q, vw, fr, keep, cfg, init, cache)
+        if f.rms > cfg.split_tol or f.p95 > 3 * cfg.split_tol:
+            continue
+        if fr is not None and int(np.count_nonzero(radial_error(f.squircle, fr) < -cfg.free_tol)):
+            continue
+        nb = [b for b in cyc if b != a and b in adj[a]]
+        if all(_overlap(f.squircle, fits[b].squircle, grow) for b in nb):
+            continue
+        if best is None or f.squircle.area < best[0]:
+            owner = np.array(others)[np.argmin(err[:, covered], axis=0)]
+            rest = [(int(k), idx[covered][owner == k]) for k in np.unique(owner)]
+            best = (f.squircle.area, a, Fit(f.squircle, f.rms, f.closed, keep, f.p95), rest)
+    return None if best is None else best[1:]
 
 
 def _split_memo(q: np.ndarray, run: np.ndarray, cfg: PerceptionConfig, fr, cache, used: set, force: bool, compute):
