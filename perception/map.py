@@ -864,8 +864,15 @@ class ObstacleMap:
         if not len(q):
             return
         old = [i for i in cl.ids if i in proposed]
+        # an estimate the free space contradicts deeply (a free cell more than ``2 free_tol``
+        # inside) is no warm start: warm-started from such a box over the free space between
+        # the arms of a Y of walls, random13 noisy's pieces came back as the same box (258
+        # free cells inside; cold, four pieces along the arms)
+        init = [proposed[i].squircle for i in old]
+        if len(free):
+            init = [sq for sq in init if float(radial_error(sq, free).min()) >= -2 * self.config.free_tol]
         fits = fit_cluster(q, views=v, free=free, config=self.config, split=not cl.single, grow=1.05 * self.radius,
-                           init=[proposed[i].squircle for i in old], cache=cl.cache)
+                           init=init, cache=cl.cache)
         new_ids = []
         # a piece that kept its previous estimate (the same squircle object) keeps its id;
         # the others take the remaining ids in order, then new ones

@@ -434,3 +434,38 @@ def test_observed_free_is_where_the_beams_passed():
     assert omap.observed_free(before[None])[0]
     assert not omap.observed_free(behind[None])[0]
     assert omap.observed_free([before, behind]).shape == (2,)
+
+
+def test_refit_starts_cold_from_an_estimate_the_free_space_contradicts(monkeypatch):
+    """A refit is warm-started from the cluster's previous estimates, except those holding a
+    free cell deeper than ``2 free_tol`` (a box over the free space between the arms of a Y of
+    walls came back as the same box: random13 noisy); a sound estimate stays a warm start."""
+    import perception.map as pm
+
+    world = shared_world("simple")
+    sim = Simulator(world, seed=0)
+    omap = ObstacleMap.from_world(world)
+    poses = tour(sim, 4, np.random.default_rng(3))
+    for k, pose in enumerate(poses[:40]):
+        msg = sim.scan_message(stamp=0.1 * k, ranges=sim.true_ranges(tuple(pose)))
+        omap.update_scan(msg, {"stamp": 0.1 * k, "x": pose[0], "y": pose[1], "theta": pose[2]})
+    seen = []
+    real = pm.fit_cluster
+
+    def spy(q, **kw):
+        seen.append(list(kw["init"] or []))
+        return real(q, **kw)
+
+    monkeypatch.setattr(pm, "fit_cluster", spy)
+    est = next(iter(omap.estimates.values()))
+    _, _, free = omap._cluster_data(est.cluster)
+    assert len(free) and float(pm.radial_error(est.squircle, free).min()) >= -2 * omap.config.free_tol
+    proposed = dict(omap.estimates)
+    omap._refit(est.cluster, proposed, set(), set(), None)
+    assert any(sq is est.squircle for sq in seen[-1])  # sound: a warm start
+    box = pm._scale(est.squircle, 0.5)
+    assert float(pm.radial_error(box, free).min()) < -2 * omap.config.free_tol
+    proposed = dict(omap.estimates)
+    proposed[est.id] = pm.Estimate(est.id, box, pm.inflate(box, omap.radius), est.cluster, est.rms, est.closed)
+    omap._refit(est.cluster, proposed, set(), set(), None)
+    assert not any(sq is box for sq in seen[-1])  # contradicted: no warm start
