@@ -133,13 +133,8 @@ def test_updates_report_changes():
     assert seen and omap.to_message()["obstacles"]
 
 
-def test_refit_near_refits_once_then_waits():
-    """The executive's motion guard asks for a refit next to a return (refit_near): the cluster
-    of the estimate there is refitted at the next update, and not marked again until
-    ``_REFIT_LATEST`` scans later (a robot held by the guard must not refit every scan);
-    ``last_returns`` holds the update's returns (none of the workspace boundary's)."""
-    from perception.map import _REFIT_LATEST
-
+def _simple_after_40_scans():
+    """``simple``'s map after the first 40 scans of a 4-leg tour: (world, sim, map, poses)."""
     world = shared_world("simple")
     sim = Simulator(world, seed=0)
     omap = ObstacleMap.from_world(world)
@@ -147,6 +142,17 @@ def test_refit_near_refits_once_then_waits():
     for k, pose in enumerate(poses[:40]):
         msg = sim.scan_message(stamp=0.1 * k, ranges=sim.true_ranges(tuple(pose)))
         omap.update_scan(msg, {"stamp": 0.1 * k, "x": pose[0], "y": pose[1], "theta": pose[2]})
+    return world, sim, omap, poses
+
+
+def test_refit_near_refits_once_then_waits():
+    """The executive's motion guard asks for a refit next to a return (refit_near): the cluster
+    of the estimate there is refitted at the next update, and not marked again until
+    ``_REFIT_LATEST`` scans later (a robot held by the guard must not refit every scan);
+    ``last_returns`` holds the update's returns (none of the workspace boundary's)."""
+    from perception.map import _REFIT_LATEST
+
+    world, sim, omap, poses = _simple_after_40_scans()
     assert omap.estimates and len(omap.last_returns)
     assert np.all(-world.workspace.distance(omap.last_returns) > omap.config.ws_band - 1e-9)
     est = next(iter(omap.estimates.values()))
@@ -442,13 +448,7 @@ def test_refit_starts_cold_from_an_estimate_the_free_space_contradicts(monkeypat
     walls came back as the same box: random13 noisy); a sound estimate stays a warm start."""
     import perception.map as pm
 
-    world = shared_world("simple")
-    sim = Simulator(world, seed=0)
-    omap = ObstacleMap.from_world(world)
-    poses = tour(sim, 4, np.random.default_rng(3))
-    for k, pose in enumerate(poses[:40]):
-        msg = sim.scan_message(stamp=0.1 * k, ranges=sim.true_ranges(tuple(pose)))
-        omap.update_scan(msg, {"stamp": 0.1 * k, "x": pose[0], "y": pose[1], "theta": pose[2]})
+    world, sim, omap, poses = _simple_after_40_scans()
     seen = []
     real = pm.fit_cluster
 
