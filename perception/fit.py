@@ -929,11 +929,13 @@ def _break_cycles(q, vw, free, fits: list[Fit], cfg: PerceptionConfig, grow: flo
             break
         cyc = min(cycles, key=len)
         # a piece whose points the others already cover is redundant: drop it
+        # (``errs[a]``: the radial errors of piece ``a``'s points in every other piece, in
+        # order, shape (others, points); :func:`_shrink` reads them too)
         drop = None
+        errs: dict[int, np.ndarray] = {}
         for a in sorted(cyc, key=lambda k: len(fits[k].indices)):
-            others = [fits[k].squircle for k in range(len(fits)) if k != a]
-            err = np.min([radial_error(o, q[fits[a].indices]) for o in others], axis=0)
-            if float(err.max()) <= cfg.inside_tol:
+            errs[a] = np.array([radial_error(fits[k].squircle, q[fits[a].indices]) for k in range(len(fits)) if k != a])
+            if float(errs[a].min(axis=0).max()) <= cfg.inside_tol:
                 drop = a
                 break
         # else merge the overlapping pair whose fit keeps the free space free and explains its
@@ -958,7 +960,7 @@ def _break_cycles(q, vw, free, fits: list[Fit], cfg: PerceptionConfig, grow: flo
             # that no other piece contains, when that ends its overlap with a neighbour in the
             # cycle without swallowing free space (random12 noisy: the pair merges of a zig-zag
             # chain's cycle swallowed 300-600 free cells each)
-            shrunk = _shrink(q, vw, fr, fits, cyc, adj, cfg, grow, init, cache)
+            shrunk = _shrink(q, vw, fr, fits, cyc, adj, errs, cfg, grow, init, cache)
             if shrunk is not None:
                 a, f, rest = shrunk
                 fits[a] = f
@@ -984,17 +986,19 @@ def _break_cycles(q, vw, free, fits: list[Fit], cfg: PerceptionConfig, grow: flo
     return fits
 
 
-def _shrink(q, vw, fr, fits: list[Fit], cyc, adj, cfg: PerceptionConfig, grow: float, init, cache):
+def _shrink(q, vw, fr, fits: list[Fit], cyc, adj, errs, cfg: PerceptionConfig, grow: float, init, cache):
     """For :func:`_break_cycles`: the piece of the cycle ``cyc`` refitted to its returns that no
     other piece contains (within ``inside_tol``) whose fit overlaps fewer of its neighbours in
     the cycle, keeps every free cell out (none deeper than ``free_tol``) and explains its returns;
-    the smallest such piece by area. Returns ``(a, fit, [(k, indices)])`` - the returns it gave
-    up go to the piece ``k`` that contains them best - or None."""
+    the smallest such piece by area. ``errs[a]`` holds the radial errors of piece ``a``'s
+    points in every other piece (in order; shape (others, points)). Returns
+    ``(a, fit, [(k, indices)])`` - the returns it gave up go to the piece ``k`` that contains
+    them best - or None."""
     best = None
     for a in cyc:
         idx = fits[a].indices
         others = [k for k in range(len(fits)) if k != a]
-        err = np.array([radial_error(fits[k].squircle, q[idx]) for k in others])  # (others, points)
+        err = errs[a]
         covered = err.min(axis=0) <= cfg.inside_tol
         keep = idx[~covered]
         if len(keep) < cfg.min_piece or len(keep) == len(idx):
