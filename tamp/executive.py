@@ -87,6 +87,17 @@ Choices where the paper is vague, and why
   109.8 m; on 20 more random worlds 18/20 -> 19/20, 145.5 -> 142.1 m; from jittered start
   poses (4 per world, with the seen passages) 43 -> 44 of 52, 463.7 -> 450.6 m
   (docs/executive.md, "How much one run says").
+* **No progress** (not in the paper). The stall guard below only sees a robot that stands
+  still; next to chained walls the transformation can make the controller *creep* (millimetres
+  per second along a grown boundary, turning back and forth; docs/control.md), and a leg
+  planned before an estimate grew can leave its waypoint a few centimetres past the grown
+  corner the robot creeps along. When for ``stuck_time`` (6 s) the robot has not come
+  ``stuck_progress`` (5 cm) closer to the waypoint it tracks than it has been since that
+  waypoint was set, the executive re-plans from where it is (the same request as the stall
+  guard's): the new leg comes from the current map and trees. Seen on ``office``: at 35 s the
+  robot reached the left face of the wall hanging from the top boundary at x = 5.7, 7 cm
+  above its grown bottom corner, with the waypoint 7 cm below it; it crept 0.3 m up the face
+  and back for 25 s; with the watchdog it re-planned at 40.7 s and was in ``d1`` at 47.7 s.
 * **Commitment.** A re-plan between regions (a map change hit the leg or a tree) discounts
   the transition from the robot to the region it is heading for by ``commit_discount``
   (20 %), its straight-line lower bound as well as its tree cost (so the lazy evaluation stays
@@ -279,6 +290,11 @@ class ExecutiveConfig:
         another side of an obstacle counts). ``0`` disables it (otherwise at least 1).
     seen_share : float
         See ``seen_detour_ratio`` (in ``(0, 1]``).
+    stuck_time, stuck_progress : float
+        Progress watchdog (module doc, "No progress"): when for ``stuck_time`` seconds the
+        robot has not come ``stuck_progress`` metres closer to the waypoint it tracks than it
+        has been since that waypoint was set, the executive re-plans from where it is.
+        ``stuck_time = 0`` turns it off.
     align_angle, align_time : float
         Turning onto a leg: for up to ``align_time`` seconds after a leg is set, while the
         tracked direction is more than ``align_angle`` (radians, below ``pi / 2``) from the
@@ -352,11 +368,13 @@ class ExecutiveConfig:
     pass_beyond: float = 0.3
     align_angle: float = math.pi / 3
     align_time: float = 2.0
+    stuck_time: float = 6.0
+    stuck_progress: float = 0.05
 
     def __post_init__(self):
         check_numbers(self, ("buffer", "fallback_buffer", "check_margin", "blocked_timeout", "detour_ratio",
                              "seen_detour_ratio", "seen_share", "align_angle", "align_time", "guard_horizon",
-                             "max_segment", "pass_beyond"), positive=False, error=TampError)
+                             "max_segment", "pass_beyond", "stuck_time", "stuck_progress"), positive=False, error=TampError)
         if self.guard_margin is not None:
             check_numbers(self, ("guard_margin",), positive=False, error=TampError)
         if not (isinstance(self.waypoint_tolerance, (int, float)) and self.waypoint_tolerance > 0):
@@ -608,6 +626,7 @@ class Executive:
         self._need_plan = True
         start = np.array(world.robot.start[:2])
         self._stalled = 0
+        self._progress = None  # (leg, waypoint index, best distance, when it was reached)
         self._pose: tuple[float, float, float] = tuple(float(v) for v in world.robot.start)
         self._inside = {n for n, reg in world.regions.items() if reg.contains(start)}
         node = self.planner.node.region
@@ -1249,6 +1268,7 @@ class Executive:
                              if self.config.align_angle > 0 and not self.control.accel_max > 0 else -math.inf)
         self._edge_t0 = self.time
         self._stalled = 0
+        self._progress = None
         self.target = target
         if self.state is not ExecutiveState.EXECUTING:
             self._note(f"executing: next region {target}")
@@ -1326,6 +1346,7 @@ class Executive:
         while self.wp < len(self.leg) - 1 and self._passed(q, self.leg[self.wp], tol):
             self._edge_done(self.wp)
             self.wp += 1
+        self._watch(q)
         cur = self._field(self.leg[self.wp])
         if cur is None:
             return 0.0, 0.0
@@ -1374,6 +1395,23 @@ class Executive:
         else:
             self._stalled = 0
         return cmd.v, cmd.omega
+
+    def _watch(self, q) -> None:
+        """Progress watchdog (module doc, "No progress"): re-plan from here when the robot has
+        not come ``stuck_progress`` closer to the tracked waypoint for ``stuck_time`` seconds."""
+        cfg = self.config
+        if cfg.stuck_time <= 0:
+            return
+        d = float(np.linalg.norm(q - np.asarray(self.leg[self.wp][:2])))
+        prog = self._progress
+        if prog is None or prog[0] is not self.leg or prog[1] != self.wp or d < prog[2] - cfg.stuck_progress:
+            self._progress = (self.leg, self.wp, d, self.time)
+            return
+        if self.time - prog[3] >= cfg.stuck_time and d > cfg.waypoint_tolerance:
+            self._progress = (self.leg, self.wp, d, self.time)
+            self._need_plan = True
+            self._note(f"no progress towards the waypoint {d:.2f} m away for {cfg.stuck_time:g} s: "
+                       "re-planning from here")
 
     def _passed(self, q, wp, tol: float) -> bool:
         """The robot at ``q`` has passed the intermediate waypoint ``wp``: within ``tol`` of it,

@@ -971,3 +971,39 @@ def test_turning_onto_a_leg_is_validated_and_off_in_the_rate_limited_mode():
     x, y, _ = world.robot.start
     ex.tick((x, y, math.pi - math.radians(80)), now=0.0)
     assert ex._align_until == -math.inf
+
+
+@pytest.mark.parametrize("stuck_time", [6.0, 3.0, 0.0])
+def test_no_progress_towards_a_waypoint_re_plans_from_where_the_robot_is(stuck_time):
+    """Progress watchdog (``stuck_time`` / ``stuck_progress``): a robot that does not come
+    closer to its waypoint (here it is held in place while commanded forward, so neither the
+    stall guard nor arrival fires) is re-planned from where it is once ``stuck_time`` seconds
+    have passed, and again after each further ``stuck_time``; ``stuck_time = 0`` never."""
+    world = _open_two_regions("F a")
+    ex = Executive(world, known=True, config=ExecutiveConfig(stuck_time=stuck_time))
+    x, y, _ = world.robot.start
+    pose = (x, y, math.pi)  # facing region a: eq. 24 drives forward
+    fired = []
+    for k in range(101):
+        t = 0.1 * k
+        before = len(ex.replan_times)
+        res = ex.tick(pose, now=t)
+        assert math.isfinite(res.v) and math.isfinite(res.omega)
+        assert res.v > 0.0 or ex._need_plan or len(ex.replan_times) > before
+        if len(ex.replan_times) > before:
+            fired.append(round(t, 1))
+    notes = [m for m in ex.messages if "no progress" in m]
+    if stuck_time == 0.0:
+        assert not fired and not notes
+    else:
+        assert len(notes) == len(fired) == int(10.0 // (stuck_time + 0.1))
+        assert fired[0] == pytest.approx(stuck_time + 0.1, abs=0.11)  # noted on one tick, re-planned on the next
+    assert ex.state is ExecutiveState.EXECUTING
+
+
+def test_progress_watchdog_settings_are_validated():
+    for name in ("stuck_time", "stuck_progress"):
+        with pytest.raises(TampError, match=name):
+            ExecutiveConfig(**{name: -1.0})
+        with pytest.raises(TampError, match=name):
+            ExecutiveConfig(**{name: float("nan")})
