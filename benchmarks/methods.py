@@ -33,16 +33,18 @@ from __future__ import annotations
 import itertools
 import math
 import time
+from dataclasses import replace
 
 import numpy as np
 
 from navigation.clearance import forest_clearance
+from navigation.control import ControllerConfig
 from navigation.errors import NavigationError
 from navigation.geometry import beta_rows, pack
 from navigation.potential import NavigationFunction
 from perception.fit import inflate
 from tamp.errors import NoPlanError
-from tamp.executive import Executive, ExecutiveState
+from tamp.executive import Executive, ExecutiveConfig, ExecutiveState
 from tamp.navmap import START
 from tamp.run import run_mission
 
@@ -123,6 +125,12 @@ class _FixedPlanMixin:
 
 class NFExecutive(_FixedPlanMixin, Executive):
     """Plain navigation function to each region of the initial plan (see the module doc)."""
+
+    def __init__(self, world, task=None, *, known: bool = False, config: ExecutiveConfig | None = None):
+        # the negated gradient itself is tracked (:class:`PlainField` has no push-forward flow)
+        cfg = config or ExecutiveConfig()
+        ctl = replace(cfg.controller or ControllerConfig(), push_forward=False)
+        super().__init__(world, task, known=known, config=replace(cfg, controller=ctl))
 
     def _set_leg(self, p, target) -> None:
         c = self.world.regions[target].center

@@ -119,7 +119,9 @@ def _free_port() -> int:
 
 def _executive_config(a):
     """The executive's configuration from the options: the controller's rate-limited mode when
-    ``--accel-max`` or ``--alpha-max`` is given, else the defaults (``None``)."""
+    ``--accel-max`` or ``--alpha-max`` is given (with the rotated-gradient direction it was
+    measured with, docs/control.md "Rate-limited mode"), else the executive's defaults
+    (``None``: the push-forward direction, docs/executive.md "Tracked direction")."""
     if a.accel_max is None and a.alpha_max is None:
         return None
     from navigation.control import RATE_LIMITED, ControllerConfig

@@ -281,13 +281,19 @@ def _seen_gap_world() -> World:
         "task": "F b"})
 
 
-@pytest.mark.parametrize("seen", [1.25, 0.0])
-def test_a_narrow_passage_seen_free_is_taken_on_a_shorter_way(seen):
+@pytest.mark.parametrize("seen, controller, short", [(1.25, "default", 2.75), (1.25, None, 2.3), (0.0, "default", 0.0)])
+def test_a_narrow_passage_seen_free_is_taken_on_a_shorter_way(seen, controller, short):
     """``seen_detour_ratio``: the walls are discovered; the way round is 1.5 times the way
     through the gap, which the robot has seen free: taken by default, not with
-    ``seen_detour_ratio=0`` (only ``detour_ratio`` = 2 then). No contact either way."""
-    _through_the_gap_or_round(_seen_gap_world(), ExecutiveConfig(seen_detour_ratio=seen), bool(seen),
-                              short=2.3, far=2.8, below=0.9)
+    ``seen_detour_ratio=0`` (only ``detour_ratio`` = 2 then). No contact either way. Through
+    the gap the executive's default push-forward direction drags the robot up along the upper
+    wall, which nearly touches the boundary (the transformation's conditioning there,
+    docs/navigation.md), until the progress watchdog re-plans: 2.69 m against 1.93 m with the
+    rotated gradient (``controller=None``), still shorter than any way round (> 2.8 m)."""
+    cfg = ExecutiveConfig(seen_detour_ratio=seen)
+    if controller is None:
+        cfg = dataclasses.replace(cfg, controller=None)
+    _through_the_gap_or_round(_seen_gap_world(), cfg, bool(seen), short=short, far=2.8, below=0.9)
 
 
 def test_a_passage_counts_as_seen_only_once_the_lidar_crossed_it():

@@ -6,7 +6,9 @@ connects to it over TCP, as a robot or an operator would.
 
 from __future__ import annotations
 
+import dataclasses
 import json
+import math
 import time
 
 import pytest
@@ -105,8 +107,12 @@ def test_bad_input_on_every_key_is_dropped_with_a_warning_and_no_state_change(si
 
 
 def test_watchdog_stops_the_robot_and_recovers(simple):
-    brain = ExecutiveBrain(simple, "F a & F b")
-    sim = Simulator(simple, seed=0)
+    # the fed simulator does not move the robot: start it facing its first waypoint (south,
+    # towards ``a``) so that the executive's first command drives (v > 0) rather than turns
+    x, y, _ = simple.robot.start
+    world = dataclasses.replace(simple, robot=dataclasses.replace(simple.robot, start=(x, y, -math.pi / 2)))
+    brain = ExecutiveBrain(world, "F a & F b")
+    sim = Simulator(world, seed=0)
     with running_node(brain, rate=20.0, watchdog=0.5) as (node, cl, prefix):
         status = Recorder(cl, f"{prefix}/status")
         cmd = Recorder(cl, f"{prefix}/cmd_vel")
