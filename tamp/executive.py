@@ -91,9 +91,10 @@ Choices where the paper is vague, and why
   each waypoint's field (``ControllerConfig(push_forward=True)``, docs/control.md), not the
   rotated gradient of eq. 20-23 that ``navigation.track`` follows by default: its integral
   curves have no folds away from grown boundaries, so the turn rate chatters less and the
-  missions are faster. Measured over 126 runs of the benchmarks (docs/executive.md "Tracked
-  direction"): no collision either way, turn-rate chatter median 2.63 -> 1.79 /m on the
-  evaluation's 22 scenarios, mission time -8 % from jittered start poses, the same
+  missions are faster. Measured over 146 runs with unknown obstacles (the executive
+  benchmark's 104 jittered runs, the evaluation's 22 scenarios, 20 more random worlds;
+  docs/executive.md "Tracked direction"): no collision either way, turn-rate chatter median
+  2.63 -> 1.79 /m on the 22 scenarios, mission time -8 % over the jittered runs, the same
   distances. It was kept off until perception's estimates and the motion guard made it safe
   (it collided on ``office`` when measured on commit 89acdee, docs/control.md).
 * **No progress** (not in the paper). The stall guard below only sees a robot that stands
