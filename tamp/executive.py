@@ -638,7 +638,9 @@ class Executive:
         self._need_plan = True
         start = np.array(world.robot.start[:2])
         self._stalled = 0
-        self._progress = None  # (leg, waypoint index, best distance, when it was reached)
+        # (leg, waypoint index, best distance, when it was reached): a new leg object or
+        # waypoint starts a new record (:meth:`_watch`), so setting a leg need not reset it
+        self._progress = None
         self._pose: tuple[float, float, float] = tuple(float(v) for v in world.robot.start)
         self._inside = {n for n, reg in world.regions.items() if reg.contains(start)}
         node = self.planner.node.region
@@ -1280,7 +1282,6 @@ class Executive:
                              if self.config.align_angle > 0 and not self.control.accel_max > 0 else -math.inf)
         self._edge_t0 = self.time
         self._stalled = 0
-        self._progress = None
         self.target = target
         if self.state is not ExecutiveState.EXECUTING:
             self._note(f"executing: next region {target}")
