@@ -45,7 +45,7 @@ import numpy as np
 from benchmarks._common import log, machine_info, write_results
 from benchmarks.methods import ADAPTATION, METHODS, ompl_status, oracle_tour, run_method
 
-__all__ = ["main", "run", "scenario", "render_markdown", "CHATTER_FLAG", "SHARED"]
+__all__ = ["main", "run", "scenario", "render_markdown", "chatter_table", "CHATTER_FLAG", "SHARED"]
 
 SHARED = ("office", "cluttered20")
 CHATTER_FLAG = 1.0  #: chatter (flips per metre) above which a run's oscillation is flagged
@@ -280,6 +280,30 @@ def scenario_table(s: dict) -> list[str]:
     return lines + [""]
 
 
+def chatter_table(result: dict) -> list[str]:
+    """Where each method's chatter comes from, over every scenario
+    (:func:`benchmarks.methods.chatter_sources`): flips per metre on the ticks of a re-plan, of a
+    waypoint hand-over, and while tracking one waypoint."""
+    rows = []
+    for m in result["methods"]:
+        runs = [s["runs"][m] for s in result["scenarios"] if "chatter_sources" in s["runs"].get(m, {})]
+        if not runs:
+            continue
+        dist = sum(r["distance"] for r in runs)
+        n = {k: sum(r["chatter_sources"][k] for r in runs) for k in ("handover", "replan", "tracking")}
+        per = {k: (v / dist if dist > 1e-9 else 0.0) for k, v in n.items()}
+        rows.append(f"| {m} | {len(runs)} | {dist:.1f} | {sum(n.values())} | {n['handover']} ({per['handover']:.2f}) | "
+                    f"{n['replan']} ({per['replan']:.2f}) | {n['tracking']} ({per['tracking']:.2f}) |")
+    if not rows:
+        return []
+    return ["## Where the chatter comes from", "",
+            "Flips of the executed turn rate over every scenario, by what changed on the tick of the second "
+            "period: the executive re-planned, the tracked waypoint changed without a re-plan (hand-over to the "
+            "next waypoint's field), or neither (tracking one field). Count (per metre).", "",
+            "| method | runs | distance m | flips | at hand-overs | at re-plans | while tracking |",
+            "|---|---:|---:|---:|---:|---:|---:|", *rows, ""]
+
+
 def render_markdown(result: dict) -> str:
     out = ["# Evaluation: paper 001 Table 1 on our worlds", "",
            f"Command: `{result.get('command') or 'python -m benchmarks.evaluation'}`; wall {result['wall']:.0f} s; "
@@ -333,6 +357,7 @@ def render_markdown(result: dict) -> str:
                 cells.append(f"{r['distance']:.2f}{mark}")
             out.append(f"| {s['scenario']} | " + " | ".join(cells) + " |")
         out.append("")
+    out += chatter_table(result)
     if "timing" in result:
         out += ["## Potential construction vs obstacles", "",
                 "`benchmarks.online.bench_world`: median per added obstacle; *update* = incremental forest + "
@@ -374,7 +399,8 @@ def _strip(result: dict) -> dict:
     r = copy.deepcopy(result)
     for s in r["scenarios"]:
         for run in s["runs"].values():
-            run.pop("trajectory", None)
+            for key in ("trajectory", "waypoints", "replanned"):
+                run.pop(key, None)
     return r
 
 

@@ -49,7 +49,7 @@ from tamp.navmap import START
 from tamp.run import run_mission
 
 __all__ = ["METHODS", "ADAPTATION", "OHPFExecutive", "NFExecutive", "RRTStarExecutive", "PlainField",
-           "ompl_status", "run_method", "oracle_tour", "chatter"]
+           "ompl_status", "run_method", "oracle_tour", "chatter", "chatter_sources"]
 
 METHODS = ("HT", "OHPF", "NF", "RRT*", "oracle")
 #: the paper's "Adaptation" column: does the task plan adapt to what the robot discovers
@@ -303,18 +303,45 @@ class RRTStarExecutive(_FixedPlanMixin, Executive):
 
 
 # ------------------------------------------------------------------------------ closed loop
+def _flips(poses, dt: float) -> tuple[np.ndarray, float]:
+    """Ticks ``k`` whose executed turn rate flipped sign against the period before (both
+    ``|omega| > 0.05`` rad/s), and the distance travelled (m), from the poses at each tick."""
+    if len(poses) < 3:
+        return np.zeros(0, dtype=int), 0.0
+    P = np.asarray(poses, dtype=float)
+    w = np.arctan2(np.sin(np.diff(P[:, 2])), np.cos(np.diff(P[:, 2]))) / dt  # w[k]: the command of tick k
+    dist = float(np.linalg.norm(np.diff(P[:, :2], axis=0), axis=1).sum())
+    on = np.abs(w) > 0.05
+    flips = on[1:] & on[:-1] & (np.sign(w[1:]) != np.sign(w[:-1]))
+    return np.flatnonzero(flips) + 1, dist
+
+
 def chatter(poses, dt: float) -> float:
     """Turn-rate chatter: sign flips of the *executed* turn rate between consecutive control
     periods (both ``|omega| > 0.05`` rad/s), per metre travelled. Computed from the recorded
     poses, the same way for every method."""
-    if len(poses) < 3:
-        return 0.0
-    P = np.asarray(poses, dtype=float)
-    w = np.arctan2(np.sin(np.diff(P[:, 2])), np.cos(np.diff(P[:, 2]))) / dt
-    dist = float(np.linalg.norm(np.diff(P[:, :2], axis=0), axis=1).sum())
-    on = np.abs(w) > 0.05
-    flips = on[1:] & on[:-1] & (np.sign(w[1:]) != np.sign(w[:-1]))
-    return int(flips.sum()) / dist if dist > 1e-9 else 0.0
+    ticks, dist = _flips(poses, dt)
+    return len(ticks) / dist if dist > 1e-9 else 0.0
+
+
+def chatter_sources(poses, waypoints, replanned, dt: float) -> dict:
+    """Where the flips :func:`chatter` counts happen, by what changed at the tick of the second
+    of the two periods: ``replan`` (the executive re-planned on that tick), ``handover`` (the
+    tracked waypoint changed without a re-plan: the robot passed an intermediate waypoint and
+    the next one's field took over), ``tracking`` (neither: the field or the controller turned
+    the robot round on its own). ``poses``, ``waypoints`` (``status.waypoint`` per tick) and
+    ``replanned`` are :func:`tamp.run.run_mission`'s recorded lists. Counts, and per metre."""
+    ticks, dist = _flips(poses, dt)
+    out = {"handover": 0, "replan": 0, "tracking": 0}
+    for k in ticks:
+        if replanned[k]:
+            out["replan"] += 1
+        elif waypoints[k] != waypoints[k - 1]:
+            out["handover"] += 1
+        else:
+            out["tracking"] += 1
+    out["per_m"] = {key: (n / dist if dist > 1e-9 else 0.0) for key, n in list(out.items())}
+    return out
 
 
 _CLASSES = {"OHPF": OHPFExecutive, "NF": NFExecutive, "RRT*": RRTStarExecutive}
@@ -328,7 +355,9 @@ def run_method(method: str, world, task=None, *, seed: int = 0, max_time: float 
         r = run_mission(world, task, seed=seed, max_time=max_time, record=True, executive_cls=_CLASSES[method])
     else:
         raise ValueError(f"unknown method {method!r}, must be one of {', '.join(m for m in METHODS if m != 'oracle')}")
-    r["chatter"] = chatter(r["trajectory"], 1.0 / world.lidar.rate_hz)
+    dt = 1.0 / world.lidar.rate_hz
+    r["chatter"] = chatter(r["trajectory"], dt)
+    r["chatter_sources"] = chatter_sources(r["trajectory"], r["waypoints"], r["replanned"], dt)
     return r
 
 

@@ -88,8 +88,10 @@ def run_mission(world, task: str | None = None, known: bool = False, seed: int =
     progress : callable(str), optional
         Called with a line on every state or target change.
     record : bool
-        Also return the trajectory (``"trajectory"``: the pose at each tick) and the commands
-        (``"commands"``: ``(v, omega)`` sent at each tick).
+        Also return the trajectory (``"trajectory"``: the pose at each tick), the commands
+        (``"commands"``: ``(v, omega)`` sent at each tick), the waypoint tracked at each tick
+        (``"waypoints"``: the ``status`` field ``waypoint``, ``[x, y, theta]`` or ``None``) and
+        whether the tick re-planned (``"replanned"``).
     executive_cls : type
         :class:`Executive` or a subclass (the evaluation suite's baselines), constructed as
         ``executive_cls(world, task, known=known, config=config)``.
@@ -128,7 +130,7 @@ def run_mission(world, task: str | None = None, known: bool = False, seed: int =
     sim = Simulator(world, seed=seed)
     period = 1.0 / world.lidar.rate_hz
     next_scan = 0.0
-    ticks, cpu, omegas, poses, commands = [], [], [], [], []
+    ticks, cpu, omegas, poses, commands, targets, replanned = [], [], [], [], [], [], []
     bad = 0
     last = None
     blocked_since = None
@@ -169,6 +171,8 @@ def run_mission(world, task: str | None = None, known: bool = False, seed: int =
         if record:
             poses.append(tuple(sim.pose))
             commands.append((v, w))
+            targets.append(res.status["waypoint"])
+            replanned.append(bool(res.replanned))
         sim.step((v, w))
     m = sim.metrics
     rt = ex.replan_times
@@ -208,6 +212,8 @@ def run_mission(world, task: str | None = None, known: bool = False, seed: int =
     if record:
         out["trajectory"] = poses
         out["commands"] = commands
+        out["waypoints"] = targets
+        out["replanned"] = replanned
     return out
 
 

@@ -9,10 +9,14 @@ its skip path, so the test passes whether or not ``ompl`` is installed).
 from __future__ import annotations
 
 import json
+import math
 
 import cv2
+import numpy as np
+import pytest
 
 from benchmarks import evaluation
+from benchmarks.methods import chatter, chatter_sources
 
 
 def test_quick_run_writes_report_and_ht_completes(tmp_path, capsys):
@@ -25,10 +29,15 @@ def test_quick_run_writes_report_and_ht_completes(tmp_path, capsys):
         assert ht["completed"] and ht["collisions"] == 0 and ht["bad_commands"] == 0
         assert s["runs"]["oracle"]["distance"] > 0 and ht["ratio"] > 0
         assert "trajectory" not in ht  # trajectories go to the figures, not the JSON
+        assert "waypoints" not in ht and "replanned" not in ht
+        src = ht["chatter_sources"]
+        per_m = src["per_m"]
+        assert per_m["handover"] + per_m["replan"] + per_m["tracking"] == pytest.approx(ht["chatter"])  # one source each
     assert data["aggregates"]["HT"]["success_rate"] == 1.0
     assert {"median", "p90"} == set(data["aggregates"]["HT"]["distance"])
     report = (out / "evaluation.md").read_text()
     assert "## Random forest worlds (2)" in report and "| HT | 2/2 |" in report
+    assert "## Where the chatter comes from" in report
     for name in ("traj_random0.png", "traj_random1.png", "potential_time.png"):
         img = cv2.imread(str(out / name))
         assert img is not None and img.shape[0] > 100 and img.shape[1] > 100
@@ -45,3 +54,24 @@ def test_rrt_star_skipped_with_reason_without_ompl(tmp_path, monkeypatch):
     assert data["skipped"] == {"RRT*": "import ompl failed: test"}
     assert all("RRT*" not in s["runs"] for s in data["scenarios"])
     assert "skipped (import ompl failed: test)" in (out / "evaluation.md").read_text()
+
+
+def test_chatter_sources_attribute_each_flip_to_the_change_on_its_tick():
+    """Exact check on a made-up run: turn rates +, -, -, +, +, -, 0.01, + (rad/s) at 1 m/s; the
+    flips are on ticks 1, 3 and 5 (tick 7 follows a rate below 0.05 rad/s: no flip). Tick 1
+    re-planned, tick 3 changed waypoint, tick 5 changed nothing."""
+    dt = 0.1
+    rates = [0.5, -0.5, -0.4, 0.3, 0.3, -0.2, 0.01, 0.4]
+    poses, x, y, th = [], 0.0, 0.0, 0.0
+    for w in rates + [0.0]:
+        poses.append((x, y, th))
+        x, y, th = x + dt * math.cos(th), y + dt * math.sin(th), th + w * dt
+    wp_a, wp_b = [1.0, 0.0, 0.0], [2.0, 0.0, 0.0]
+    waypoints = [wp_a, wp_a, wp_a, wp_b, wp_b, wp_b, wp_b, wp_b, wp_b]
+    replanned = [False, True, False, False, False, False, False, False, False]
+    src = chatter_sources(poses, waypoints, replanned, dt)
+    dist = float(np.linalg.norm(np.diff(np.asarray(poses)[:, :2], axis=0), axis=1).sum())
+    assert (src["replan"], src["handover"], src["tracking"]) == (1, 1, 1)
+    assert src["per_m"]["handover"] == pytest.approx(1 / dist)
+    assert chatter(poses, dt) == pytest.approx(3 / dist)
+    assert chatter_sources(poses[:2], waypoints[:2], replanned[:2], dt)["tracking"] == 0  # too short: no flips
