@@ -1,13 +1,14 @@
 """The compiled (numba) kernels of the navigation core, and their one-time warm-up.
 
-The forest construction and the exact squircle geometry run in numba kernels
-(``navigation._geom_kernel``, ``_sample_kernel``, ``_pair_kernel``, ``_lp_kernel``,
-``_center_kernel``). numba compiles a kernel on its first call and caches the machine code on
-disk (``cache=True``, in the package's ``__pycache__``), so the first process on a machine pays
-the compilation (10-40 s on the 2-core reference machine) and later processes load the cache
-(well under a second). :func:`warm_up` makes that cost happen at a chosen moment (service start-
-up) instead of at the first map change of a running robot; :func:`compiled_signatures` lets a
-test check that nothing compiles after it.
+The forest construction, the exact squircle geometry and the second-order evaluation of the
+transformation chain run in numba kernels (``navigation._geom_kernel``, ``_sample_kernel``,
+``_pair_kernel``, ``_lp_kernel``, ``_center_kernel``, ``_chain_kernel``). numba compiles a
+kernel on its first call and caches the machine code on disk (``cache=True``, in the package's
+``__pycache__``), so the first process on a machine pays the compilation (10-40 s on the 2-core
+reference machine) and later processes load the cache (well under a second). :func:`warm_up`
+makes that cost happen at a chosen moment (service start-up) instead of at the first map
+change of a running robot; :func:`compiled_signatures` lets a test check that nothing compiles
+after it.
 """
 
 from __future__ import annotations
@@ -21,9 +22,9 @@ __all__ = ["warm_up", "compiled_signatures"]
 
 
 def _modules():
-    from . import _center_kernel, _geom_kernel, _lp_kernel, _pair_kernel, _sample_kernel
+    from . import _center_kernel, _chain_kernel, _geom_kernel, _lp_kernel, _pair_kernel, _sample_kernel
 
-    return (_geom_kernel, _sample_kernel, _pair_kernel, _lp_kernel, _center_kernel)
+    return (_geom_kernel, _sample_kernel, _pair_kernel, _lp_kernel, _center_kernel, _chain_kernel)
 
 
 def compiled_signatures(modules=()) -> dict[str, int]:

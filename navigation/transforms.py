@@ -50,6 +50,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import _chain_kernel
 from ._arrays import as_points
 from ._jet import _EDGE, Jet, smoothstep_coeffs
 from .geometry import _root_jet, ray_length_center_jet, ray_length_packed
@@ -345,6 +346,7 @@ class Chain(_Stage):
     stages: tuple
     name: str = "chain"
     _last: list = field(default_factory=lambda: [None], init=False, repr=False, compare=False)
+    _compiled: list = field(default_factory=lambda: [None], init=False, repr=False, compare=False)
 
     def apply(self, x: Jet, y: Jet) -> tuple[Jet, Jet]:
         key = None
@@ -353,11 +355,56 @@ class Chain(_Stage):
             last = self._last[0]
             if last is not None and last[0] == key:
                 return Jet(last[1].copy()), Jet(last[2].copy())
-        for st in self.stages:
-            x, y = st.apply(x, y)
+        if x.a.ndim == 2:
+            x, y = self._apply_compiled(x, y)
+        else:
+            for st in self.stages:
+                x, y = st.apply(x, y)
         if key is not None:
             self._last[0] = (key, x.a.copy(), y.a.copy())
         return x, y
+
+    def _apply_compiled(self, x: Jet, y: Jet) -> tuple[Jet, Jet]:
+        """The stages in the compiled kernels of :mod:`navigation._chain_kernel` (the same
+        formulas point by point; the stages' arrays are packed once per chain). The kernels
+        carry second-order jets; lower orders are padded with zero derivatives and cut back, so
+        the values (and gradients) are the same bits at every order."""
+        calls = self._compiled[0]
+        if calls is None:
+            calls = self._compiled[0] = [_kernel_call(st) for st in self.stages]
+        c = x.a.shape[-1]
+        if c == 6:
+            X = np.ascontiguousarray(x.a, dtype=float)
+            Y = np.ascontiguousarray(y.a, dtype=float)
+        else:
+            X = np.zeros((x.a.shape[0], 6))
+            Y = np.zeros((y.a.shape[0], 6))
+            X[:, :c] = x.a
+            Y[:, :c] = y.a
+        for kernel, args in calls:
+            OX, OY = np.empty_like(X), np.empty_like(Y)
+            kernel(X, Y, *args, OX, OY)
+            X, Y = OX, OY
+        if c != 6:
+            X, Y = X[:, :c].copy(), Y[:, :c].copy()
+        return Jet(X), Jet(Y)
+
+
+def _kernel_call(stage):
+    """``(kernel, arguments)`` of one stage for :meth:`Chain._apply_compiled`."""
+    f = lambda a: np.ascontiguousarray(a, dtype=float)  # noqa: E731
+    if isinstance(stage, PurgeStage):
+        return _chain_kernel.purge, (f(stage.leaf).reshape(-1, 7), f(stage.parent).reshape(-1, 7),
+                                     np.ascontiguousarray(stage.parent_is_workspace, dtype=np.bool_),
+                                     f(stage.centre).reshape(-1, 2), f(stage.width).reshape(-1))
+    if isinstance(stage, StarToSphere):
+        return _chain_kernel.star_to_sphere, (f(stage.roots).reshape(-1, 7), f(stage.rho).reshape(-1),
+                                              f(stage.width).reshape(-1))
+    if isinstance(stage, SphereToPoint):
+        return _chain_kernel.sphere_to_point, (f(stage.centres).reshape(-1, 2), f(stage.rho).reshape(-1),
+                                               f(stage.delta).reshape(-1), f(stage.workspace).reshape(1, 7),
+                                               float(stage.rho0), float(stage.width0))
+    raise TypeError(f"no compiled kernel for stage {type(stage).__name__}")  # pragma: no cover
 
 
 _MEMO_POINTS = 4  #: largest input of :meth:`Chain.apply` whose result is kept
