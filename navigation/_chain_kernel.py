@@ -346,3 +346,128 @@ def sphere_to_point(X, Y, centres, rho, delta, ws, rho0, width0, OX, OY):
         py = _compose2(c0y + dy * gain, fx1, fy1, uy * bx, ux * by, uy * (2.0 * g1 + by), x, y)
         _store(OX, n, px)
         _store(OY, n, py)
+
+
+# ------------------------------------------------------------------------- oriented potential
+@numba.njit(inline="always", **_JIT)
+def _logistic_n(z):
+    """``navigation._jet.logistic`` of one number."""
+    ez = math.exp(-abs(z))
+    q = 1.0 / (1.0 + ez)
+    return q if z >= 0 else ez * q
+
+
+@numba.njit(error_model="numpy", **_JIT)
+def oriented(X, Y, pg, A, c, axis, pts, inv_k, mu, floor, out_s, out_v, out_f):
+    """:meth:`navigation.oriented.OrientedField._evaluate` at free points away from the goal,
+    from the chain's jets ``X``, ``Y`` (N, 6): the normalised point-world coordinates
+    ``x' = A (x - P_G)``, the oriented potential ``phi_O`` (sink, dipole of strength ``c`` along
+    ``axis``, point obstacles ``pts`` weighted by ``inv_k``) composed with them, and from it
+
+    * ``out_s[n] = (value, angle, flat, flow_ok, flow_angle)``: ``mu logistic(phi_O)``, the
+      direction of ``-grad phi_O`` (0 where ``|grad|^2 <= floor``: ``flat``), whether the
+      push-forward direction was defined (``flow_ok``) and its angle;
+    * ``out_v[n] = (field_x, field_y, grad_angle_x, grad_angle_y, flow_grad_x, flow_grad_y,
+      g_x, g_y)``;
+    * ``out_f[n] = (J_xx, J_xy, J_yx, J_yy, H_xx, H_xy, H_yy)``: the field's Jacobian and
+      ``phi_O``'s Hessian.
+
+    The same formulas as the numpy code; the 2 x 2 solves of the push-forward direction are
+    written out (Cramer's rule instead of LAPACK's LU: equal to rounding)."""
+    a00, a01, a10, a11 = A[0, 0], A[0, 1], A[1, 0], A[1, 1]
+    ax_, ay_ = axis[0], axis[1]
+    for n in range(X.shape[0]):
+        x = _load(X, n)
+        y = _load(Y, n)
+        cx = _add(x, (-pg[0], 0.0, 0.0, 0.0, 0.0, 0.0))
+        cy = _add(y, (-pg[1], 0.0, 0.0, 0.0, 0.0, 0.0))
+        Xp = _add(_scale(cx, a00), _scale(cy, a01))
+        Yp = _add(_scale(cx, a10), _scale(cy, a11))
+        rx, ry = Xp[0], Yp[0]
+        # phi_O and its derivatives in x' (OrientedField._potential_derivatives)
+        d = rx * rx + ry * ry
+        inv = 1.0 / d
+        inv2, inv3 = inv * inv, inv * inv * inv
+        f = math.log(d)
+        fx, fy = 2 * rx * inv, 2 * ry * inv
+        fxx = 2 * inv - 4 * rx * rx * inv2
+        fxy = -4 * rx * ry * inv2
+        fyy = 2 * inv - 4 * ry * ry * inv2
+        nn = rx * ax_ + ry * ay_
+        f = f + c * nn * inv
+        fx = fx + c * (ax_ * inv - 2 * nn * rx * inv2)
+        fy = fy + c * (ay_ * inv - 2 * nn * ry * inv2)
+        fxx = fxx + c * (-4 * ax_ * rx * inv2 - 2 * nn * inv2 + 8 * nn * rx * rx * inv3)
+        fxy = fxy + c * (-2 * (ax_ * ry + ay_ * rx) * inv2 + 8 * nn * rx * ry * inv3)
+        fyy = fyy + c * (-4 * ay_ * ry * inv2 - 2 * nn * inv2 + 8 * nn * ry * ry * inv3)
+        if pts.shape[0]:
+            s0 = s1 = s2 = s3 = s4 = s5 = 0.0
+            for j in range(pts.shape[0]):
+                dx = rx - pts[j, 0]
+                dy = ry - pts[j, 1]
+                d2 = dx * dx + dy * dy
+                iv = 1.0 / d2
+                iv2 = iv * iv
+                s0 += math.log(d2)
+                s1 += 2 * dx * iv
+                s2 += 2 * dy * iv
+                s3 += 2 * iv - 4 * dx * dx * iv2
+                s4 += -4 * dx * dy * iv2
+                s5 += 2 * iv - 4 * dy * dy * iv2
+            f = f - inv_k * s0
+            fx = fx - inv_k * s1
+            fy = fy - inv_k * s2
+            fxx = fxx - inv_k * s3
+            fxy = fxy - inv_k * s4
+            fyy = fyy - inv_k * s5
+        phi = _compose2(f, fx, fy, fxx, fxy, fyy, Xp, Yp)
+        v, g0, g1, h00, h01, h11 = phi
+        s = _logistic_n(v)
+        sc = s * _logistic_n(-v)
+        scc = sc * (_logistic_n(-v) - s)
+        out_s[n, 0] = mu * s
+        out_v[n, 0] = -mu * sc * g0
+        out_v[n, 1] = -mu * sc * g1
+        out_f[n, 0] = -mu * (scc * g0 * g0 + sc * h00)
+        out_f[n, 1] = -mu * (scc * g0 * g1 + sc * h01)
+        out_f[n, 2] = -mu * (scc * g1 * g0 + sc * h01)
+        out_f[n, 3] = -mu * (scc * g1 * g1 + sc * h11)
+        out_f[n, 4], out_f[n, 5], out_f[n, 6] = h00, h01, h11
+        out_v[n, 6], out_v[n, 7] = g0, g1
+        a0, a1 = -g0, -g1
+        m2 = a0 * a0 + a1 * a1
+        flat = not (m2 > floor)
+        out_s[n, 2] = 1.0 if flat else 0.0
+        if flat:
+            out_s[n, 1] = 0.0
+            out_v[n, 2] = out_v[n, 3] = 0.0
+        else:
+            out_s[n, 1] = math.atan2(a1, a0)
+            out_v[n, 2] = (-a0 * h01 + a1 * h00) / m2
+            out_v[n, 3] = (-a0 * h11 + a1 * h01) / m2
+        # push-forward direction -(dx'/dq)^(-1) grad_x' phi_O (OrientedField._flow)
+        out_s[n, 3] = 0.0
+        j00, j01, j10, j11 = Xp[1], Xp[2], Yp[1], Yp[2]
+        det = j00 * j11 - j01 * j10
+        if flat or not math.isfinite(det) or not abs(det) > 0:
+            continue
+        idet = 1.0 / det
+        w0 = (j11 * fx - j01 * fy) * idet
+        w1 = (j00 * fy - j10 * fx) * idet
+        # dw = J^(-1) (H_x' J - T), T_ik = sum_j (d^2 x'_i / dq_j dq_k) w_j
+        m00 = fxx * j00 + fxy * j10 - (Xp[3] * w0 + Xp[4] * w1)
+        m01 = fxx * j01 + fxy * j11 - (Xp[4] * w0 + Xp[5] * w1)
+        m10 = fxy * j00 + fyy * j10 - (Yp[3] * w0 + Yp[4] * w1)
+        m11 = fxy * j01 + fyy * j11 - (Yp[4] * w0 + Yp[5] * w1)
+        dw00 = (j11 * m00 - j01 * m10) * idet
+        dw01 = (j11 * m01 - j01 * m11) * idet
+        dw10 = (j00 * m10 - j10 * m00) * idet
+        dw11 = (j00 * m11 - j10 * m01) * idet
+        wm2 = w0 * w0 + w1 * w1
+        if not (math.isfinite(wm2) and wm2 > floor and math.isfinite(dw00) and math.isfinite(dw01)
+                and math.isfinite(dw10) and math.isfinite(dw11)):
+            continue
+        out_s[n, 3] = 1.0
+        out_s[n, 4] = math.atan2(-w1, -w0)
+        out_v[n, 4] = (w0 * dw10 - w1 * dw00) / wm2
+        out_v[n, 5] = (w0 * dw11 - w1 * dw01) / wm2

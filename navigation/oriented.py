@@ -82,6 +82,11 @@ near a point, exact gradients; :meth:`OrientedField.boundary_scan` evaluates the
 for several reaches) and :attr:`OrientedField.goal_clearance` serve the controller's
 opt-in stand-off (:mod:`navigation.control`); they are not part of the field.
 
+Evaluation: at free points the chain's jets and everything above (``phi_O``, the field, its
+Jacobian, both directions and their gradients) run point by point in the compiled kernel
+:func:`navigation._chain_kernel.oriented`; :meth:`OrientedField._core_numpy` is the numpy
+reference it is tested against (``tests/test_chain_kernel.py``, equal to rounding).
+
 Degenerate points: the goal itself (``|q - q_G| < GOAL_TOLERANCE``) and critical points
 (``|grad phi_O| < GRADIENT_FLOOR``) are flagged ``degenerate``: field 0, direction ``theta_G``
 (goal) or 0, zero derivatives. Outside free space the navigation function's outside contract
@@ -97,6 +102,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from . import _chain_kernel
 from ._arrays import as_points, restore
 from ._jet import Jet, logistic
 from .clearance import forest_clearance
@@ -107,6 +113,7 @@ __all__ = ["OrientedField", "OrientedEval", "BoundaryFrame", "BoundaryScan", "wr
            "GRADIENT_FLOOR", "GOAL_TOLERANCE"]
 
 DIPOLE_FRACTION = 0.3
+_COMPILED = True  #: evaluate the field in the compiled kernel (False: the numpy reference)
 GRADIENT_FLOOR = 1e-300
 GOAL_TOLERANCE = 1e-9
 
@@ -468,35 +475,10 @@ class OrientedField:
         idx = np.nonzero(free & ~at_goal)[0]
         if len(idx):
             x, y = self.nf.chain.apply(*Jet.variables(pts[idx], 2))
-            a = self._A
-            cx, cy = x - self._pg[0], y - self._pg[1]
-            X, Y = cx * a[0, 0] + cy * a[0, 1], cx * a[1, 0] + cy * a[1, 1]
-            f, fx, fy, fxx, fxy, fyy = self._potential_derivatives(X.v, Y.v)
-            phi = Jet.compose2(f, fx, fy, fxx, fxy, fyy, X, Y)
-            v = phi.v
-            g = phi.g  # (M, 2) gradient of phi_O w.r.t. q
-            H = phi.hessian()  # (M, 2, 2)
-            s = logistic(v)
-            sc = s * logistic(-v)  # logistic'
-            scc = sc * (logistic(-v) - s)  # logistic''
-            value[idx] = mu * s
-            # Upsilon = -mu logistic'(phi) grad phi ; J = -mu (logistic'' g g^T + logistic' H)
-            field[idx] = -mu * sc[:, None] * g
-            jac[idx] = -mu * (scc[:, None, None] * g[:, :, None] * g[:, None, :] + sc[:, None, None] * H)
-            a = -g
-            m2 = np.einsum("ni,ni->n", a, a)
-            flat = ~(m2 > GRADIENT_FLOOR)
-            safe = np.where(flat, 1.0, m2)
-            angle[idx] = np.where(flat, 0.0, np.arctan2(a[:, 1], a[:, 0]))
-            # d atan2(a_y, a_x)/dq = (a_x grad a_y - a_y grad a_x)/|a|^2 with grad a = -H
-            ga = (-a[:, 0, None] * H[:, 1, :] + a[:, 1, None] * H[:, 0, :]) / safe[:, None]
-            grad_angle[idx] = np.where(flat[:, None], 0.0, ga)
+            core = self._core_compiled if _COMPILED else self._core_numpy
+            (value[idx], field[idx], jac[idx], angle[idx], grad_angle[idx], flat, pot_g[idx], pot_h[idx],
+             flow_angle[idx], flow_gradient[idx]) = core(x, y)
             degenerate[idx] = flat
-            ok = ~flat & np.isfinite(g).all(axis=1) & np.isfinite(H).all(axis=(1, 2))
-            pot_g[idx] = np.where(ok[:, None], g, 0.0)
-            pot_h[idx] = np.where(ok[:, None, None], H, 0.0)
-            flow_angle[idx], flow_gradient[idx] = angle[idx], grad_angle[idx]
-            self._flow(X, Y, fx, fy, fxx, fxy, fyy, ~flat, idx, flow_angle, flow_gradient)
         out = np.nonzero(~free)[0]
         if len(out):
             back = -np.asarray(self.nf.evaluate(pts[out], order=1).gradient)
@@ -508,6 +490,60 @@ class OrientedField:
             raise OutsideFreeSpaceError("oriented field is not finite here")  # pragma: no cover
         return OrientedEval(value, field, jac, wrap_angle(angle), grad_angle, free, degenerate,
                             wrap_angle(flow_angle), flow_gradient, pot_g, pot_h)
+
+    def _core_numpy(self, x: Jet, y: Jet):
+        """The field at free points away from the goal from the chain's jets ``x``, ``y``:
+        ``(value, field, jacobian, angle, angle_gradient, flat, potential_gradient,
+        potential_hessian, flow_angle, flow_gradient)`` (numpy; the reference of
+        :meth:`_core_compiled`)."""
+        mu = self.mu
+        m = len(x)
+        a = self._A
+        cx, cy = x - self._pg[0], y - self._pg[1]
+        X, Y = cx * a[0, 0] + cy * a[0, 1], cx * a[1, 0] + cy * a[1, 1]
+        f, fx, fy, fxx, fxy, fyy = self._potential_derivatives(X.v, Y.v)
+        phi = Jet.compose2(f, fx, fy, fxx, fxy, fyy, X, Y)
+        v = phi.v
+        g = phi.g  # (M, 2) gradient of phi_O w.r.t. q
+        H = phi.hessian()  # (M, 2, 2)
+        s = logistic(v)
+        sc = s * logistic(-v)  # logistic'
+        scc = sc * (logistic(-v) - s)  # logistic''
+        value = mu * s
+        # Upsilon = -mu logistic'(phi) grad phi ; J = -mu (logistic'' g g^T + logistic' H)
+        field = -mu * sc[:, None] * g
+        jac = -mu * (scc[:, None, None] * g[:, :, None] * g[:, None, :] + sc[:, None, None] * H)
+        a = -g
+        m2 = np.einsum("ni,ni->n", a, a)
+        flat = ~(m2 > GRADIENT_FLOOR)
+        safe = np.where(flat, 1.0, m2)
+        angle = np.where(flat, 0.0, np.arctan2(a[:, 1], a[:, 0]))
+        # d atan2(a_y, a_x)/dq = (a_x grad a_y - a_y grad a_x)/|a|^2 with grad a = -H
+        ga = (-a[:, 0, None] * H[:, 1, :] + a[:, 1, None] * H[:, 0, :]) / safe[:, None]
+        grad_angle = np.where(flat[:, None], 0.0, ga)
+        ok = ~flat & np.isfinite(g).all(axis=1) & np.isfinite(H).all(axis=(1, 2))
+        pot_g = np.where(ok[:, None], g, 0.0)
+        pot_h = np.where(ok[:, None, None], H, 0.0)
+        flow_angle, flow_gradient = angle.copy(), grad_angle.copy()
+        self._flow(X, Y, fx, fy, fxx, fxy, fyy, ~flat, np.arange(m), flow_angle, flow_gradient)
+        return value, field, jac, angle, grad_angle, flat, pot_g, pot_h, flow_angle, flow_gradient
+
+    def _core_compiled(self, x: Jet, y: Jet):
+        """:meth:`_core_numpy` in the compiled kernel :func:`navigation._chain_kernel.oriented`
+        (the same formulas point by point; equal to rounding)."""
+        m = len(x)
+        out_s, out_v, out_f = np.empty((m, 5)), np.empty((m, 8)), np.empty((m, 7))
+        _chain_kernel.oriented(np.ascontiguousarray(x.a), np.ascontiguousarray(y.a), self._pg, self._A,
+                               float(self.strength), self._axis, self._points, self._inv_k, self.mu,
+                               GRADIENT_FLOOR, out_s, out_v, out_f)
+        flat = out_s[:, 2] > 0.5
+        H = out_f[:, [4, 5, 5, 6]].reshape(m, 2, 2)
+        g = out_v[:, 6:8]
+        ok = ~flat & np.isfinite(g).all(axis=1) & np.isfinite(H).all(axis=(1, 2))
+        flow = out_s[:, 3] > 0.5
+        return (out_s[:, 0], out_v[:, 0:2], out_f[:, 0:4].reshape(m, 2, 2), out_s[:, 1], out_v[:, 2:4], flat,
+                np.where(ok[:, None], g, 0.0), np.where(ok[:, None, None], H, 0.0),
+                np.where(flow, out_s[:, 4], out_s[:, 1]), np.where(flow[:, None], out_v[:, 4:6], out_v[:, 2:4]))
 
     @staticmethod
     def _flow(X: Jet, Y: Jet, fx, fy, fxx, fxy, fyy, regular, idx, flow_angle, flow_gradient) -> None:
