@@ -1,10 +1,14 @@
-"""Compiled second-order evaluation of the transformation chain (:mod:`navigation.transforms`).
+"""Compiled second-order evaluation of the transformation chain (:mod:`navigation.transforms`)
+and of the oriented field (:mod:`navigation.oriented`).
 
 The stages of :class:`~navigation.transforms.Chain` (purges, star to sphere, sphere to point;
 paper 001 eq. 1, 10-19) evaluated point by point with second-order jets held in local
 variables: the same formulas, in the same order, as the numpy jets of :mod:`navigation._jet`
 and :mod:`navigation.transforms`, without numpy's per-call overhead on the one or two points a
-controller step evaluates (measured: the chain was 45 % of a 2 ms step on ``office``).
+controller step evaluates (measured: the chain was 45 % of a 2 ms step on ``office``). Then
+:func:`oriented` composes the oriented potential of eq. 23 (as built in
+:mod:`navigation.oriented`) with the chain's jets and returns the field, its Jacobian and the
+two tracked directions with their exact gradients.
 
 A jet is a 6-tuple ``(v, d_x, d_y, d_xx, d_xy, d_yy)`` of derivatives with respect to the query
 point, as the columns of :class:`~navigation._jet.Jet` at order 2. Arrays ``X``, ``Y`` of shape

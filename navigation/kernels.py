@@ -48,6 +48,7 @@ def warm_up() -> float:
     from ._sample_kernel import extreme_betas_arrays, sample_rows
     from .forest import build_forest
     from .geometry import Squircle, pack, ray_length_packed
+    from .oriented import OrientedField
     from .potential import NavigationFunction
 
     t0 = time.perf_counter()
@@ -60,6 +61,7 @@ def warm_up() -> float:
     forest.distances, forest.wall_distance  # noqa: B018 (lazy exact distances)
     nf = NavigationFunction(forest, (-3.0, -3.5))
     nf.evaluate(np.array([[-3.0, 3.0], [3.0, -1.0]]), 2)
+    OrientedField(nf, 0.5).evaluate(np.array([[-3.0, 3.0]]))  # the controller's field (oriented kernel)
     P, psi, pts, w0, spacing = sample_rows(pack(obstacles[:2]), 64)
     extreme_betas_arrays(P[::-1].copy(), np.array([1.0, -1.0]), np.zeros((2, 64)), P, psi, pts, spacing, w0)
     ray_length_packed(pack(obstacles[:1]), np.array([[0.0, 0.0]]), np.array([[1.0, 0.0]]), np.ones(1, bool))

@@ -38,6 +38,7 @@ for w in worlds:
     nf = navigation.NavigationFunction(forest, goal)
     nf.evaluate(np.asarray(goal)[None] + 0.05, 2)
     nf.evaluate(np.asarray(goal) + 0.05, 2)
+    navigation.OrientedField(nf, 0.3).evaluate(np.asarray(goal) + 0.1)  # the controller's field
 office = navigation.load_world("office")
 sim = Simulator(office, seed=0)
 omap = ObstacleMap.from_world(office)
