@@ -34,7 +34,7 @@ _TINY = float(np.finfo(float).tiny)
 
 
 # ------------------------------------------------------------------------------- jet algebra
-@numba.njit(inline="always", **_JIT)
+@numba.njit(**_JIT)
 def _compose2(f, fx, fy, fxx, fxy, fyy, X, Y):
     """``Jet.compose2``: the jet of ``f(x, y)`` from its partials at ``(x.v, y.v)``."""
     x1, x2, x3, x4, x5 = X[1], X[2], X[3], X[4], X[5]
@@ -47,7 +47,7 @@ def _compose2(f, fx, fy, fxx, fxy, fyy, X, Y):
     return (f, g1, g2, h3, h4, h5)
 
 
-@numba.njit(inline="always", **_JIT)
+@numba.njit(**_JIT)
 def _apply(a, f0, f1, f2):
     """``Jet.apply``: compose with a scalar function of value ``f0``, derivatives ``f1``, ``f2``."""
     g1, g2 = a[1], a[2]
@@ -55,7 +55,7 @@ def _apply(a, f0, f1, f2):
             a[5] * f1 + f2 * (g2 * g2))
 
 
-@numba.njit(inline="always", **_JIT)
+@numba.njit(**_JIT)
 def _mul(a, b):
     """``Jet.__mul__`` of two jets."""
     b0 = b[0]
@@ -66,47 +66,47 @@ def _mul(a, b):
             a[5] * b0 + a0 * b[5] + (a[2] * b[2] + b[2] * a[2]))
 
 
-@numba.njit(inline="always", **_JIT)
+@numba.njit(**_JIT)
 def _scale(a, c):
     """``Jet * constant``."""
     return (a[0] * c, a[1] * c, a[2] * c, a[3] * c, a[4] * c, a[5] * c)
 
 
-@numba.njit(inline="always", **_JIT)
+@numba.njit(**_JIT)
 def _sub(a, b):
     return (a[0] - b[0], a[1] - b[1], a[2] - b[2], a[3] - b[3], a[4] - b[4], a[5] - b[5])
 
 
-@numba.njit(inline="always", **_JIT)
+@numba.njit(**_JIT)
 def _add(a, b):
     return (a[0] + b[0], a[1] + b[1], a[2] + b[2], a[3] + b[3], a[4] + b[4], a[5] + b[5])
 
 
-@numba.njit(inline="always", **_JIT)
+@numba.njit(**_JIT)
 def _rsub(c, a):
     """``constant - Jet``."""
     return (-a[0] + c, -a[1], -a[2], -a[3], -a[4], -a[5])
 
 
-@numba.njit(inline="always", **_JIT)
+@numba.njit(**_JIT)
 def _neg(a):
     return (-a[0], -a[1], -a[2], -a[3], -a[4], -a[5])
 
 
-@numba.njit(inline="always", **_JIT)
+@numba.njit(**_JIT)
 def _reciprocal(a):
     r = 1.0 / a[0]
     return _apply(a, r, -r * r, 2.0 * r * r * r)
 
 
-@numba.njit(inline="always", **_JIT)
+@numba.njit(**_JIT)
 def _logistic(z):
     ez = math.exp(-abs(z))
     q = 1.0 / (1.0 + ez)
     return q if z >= 0 else ez * q
 
 
-@numba.njit(inline="always", **_JIT)
+@numba.njit(**_JIT)
 def _eta(a):
     """``_eta`` of :mod:`navigation.transforms`: the C-infinity step of Loizou (2017) applied
     to a jet (``smoothstep_coeffs`` at order 2)."""
@@ -132,7 +132,7 @@ def _eta(a):
 
 
 # ---------------------------------------------------------------------------- geometry pieces
-@numba.njit(inline="always", **_JIT)
+@numba.njit(**_JIT)
 def _beta_derivatives(P, k, qx, qy):
     """``navigation.geometry._beta_derivatives`` of row ``P[k]`` at ``(qx, qy)``."""
     c, sn = P[k, 2], P[k, 3]
@@ -165,7 +165,7 @@ def _beta_derivatives(P, k, qx, qy):
     return beta, b_x, b_y, b_xx, b_xy, b_yy
 
 
-@numba.njit(inline="always", **_JIT)
+@numba.njit(**_JIT)
 def _polar(X, Y, cx, cy):
     """``_polar`` of :mod:`navigation.transforms`: jets of ``r = |q - c|`` and ``u = (q - c) / r``."""
     dx = X[0] - cx
@@ -183,7 +183,7 @@ def _polar(X, Y, cx, cy):
     return jr, jx, jy
 
 
-@numba.njit(inline="always", **_JIT)
+@numba.njit(**_JIT)
 def _root_jet(P, k, ox, oy, r0, ux, uy):
     """``navigation.geometry._root_jet``: the jet of the ray length ``r(u)`` of row ``P[k]``
     from ``(ox, oy)`` (``beta(o + r u) = 0``) given its value ``r0``."""
@@ -206,7 +206,7 @@ def _root_jet(P, k, ox, oy, r0, ux, uy):
     return _compose2(r0, ra, rb, raa, rab, rbb, ux, uy)
 
 
-@numba.njit(inline="always", **_JIT)
+@numba.njit(**_JIT)
 def _center_ray_jet(P, k, ux, uy):
     """``navigation.geometry.ray_length_center_jet`` of row ``P[k]``."""
     qx = P[k, 0] + ux[0]
@@ -219,7 +219,7 @@ def _center_ray_jet(P, k, ux, uy):
                      r5 * by * by + r3 * byy, ux, uy)
 
 
-@numba.njit(inline="always", **_JIT)
+@numba.njit(**_JIT)
 def _near(P, k, px, py, margin):
     """``_pairs``' test: ``(px, py)`` within ``margin`` of row ``P[k]``'s bounding rectangle."""
     dx = px - P[k, 0]
@@ -229,12 +229,12 @@ def _near(P, k, px, py, margin):
     return lx < P[k, 4] + margin and ly < P[k, 5] + margin
 
 
-@numba.njit(inline="always", **_JIT)
+@numba.njit(**_JIT)
 def _load(A, n):
     return (A[n, 0], A[n, 1], A[n, 2], A[n, 3], A[n, 4], A[n, 5])
 
 
-@numba.njit(inline="always", **_JIT)
+@numba.njit(**_JIT)
 def _store(A, n, a):
     for j in range(6):
         A[n, j] = a[j]
@@ -353,7 +353,7 @@ def sphere_to_point(X, Y, centres, rho, delta, ws, rho0, width0, OX, OY):
 
 
 # ------------------------------------------------------------------------- oriented potential
-@numba.njit(inline="always", **_JIT)
+@numba.njit(**_JIT)
 def _logistic_n(z):
     """``navigation._jet.logistic`` of one number."""
     ez = math.exp(-abs(z))
