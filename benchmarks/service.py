@@ -144,7 +144,7 @@ def main(argv=None) -> int:
     from tamp.run import prepare
 
     # compile the kernels into numba's on-disk cache here, so that the service processes load
-    # them instead of compiling for 10-40 s (first run on a machine) before they come up
+    # them instead of compiling for up to about a minute (first run on a machine) before they come up
     log(f"[bench] service: kernels ready in {prepare():.1f} s")
     rows = []
     for case in a.cases.split(","):

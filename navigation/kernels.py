@@ -4,11 +4,11 @@ The forest construction, the exact squircle geometry and the second-order evalua
 transformation chain run in numba kernels (``navigation._geom_kernel``, ``_sample_kernel``,
 ``_pair_kernel``, ``_lp_kernel``, ``_center_kernel``, ``_chain_kernel``). numba compiles a
 kernel on its first call and caches the machine code on disk (``cache=True``, in the package's
-``__pycache__``), so the first process on a machine pays the compilation (10-40 s on the 2-core
-reference machine) and later processes load the cache (well under a second). :func:`warm_up`
-makes that cost happen at a chosen moment (service start-up) instead of at the first map
-change of a running robot; :func:`compiled_signatures` lets a test check that nothing compiles
-after it.
+``__pycache__``), so the first process on a machine pays the compilation (57 s on the 2-core
+reference machine on 2026-11-26, about 10 s of it for the chain kernels) and later processes
+load the cache (well under a second). :func:`warm_up` makes that cost happen at a chosen moment
+(service start-up) instead of at the first map change of a running robot;
+:func:`compiled_signatures` lets a test check that nothing compiles after it.
 """
 
 from __future__ import annotations

@@ -147,7 +147,7 @@ def _setup(a):
     world = navigation.load_world(a.world)
     # compile now (first run on a machine), not at the robot's first map change; say so if it takes
     seconds = prepare(lambda: print("tamp-service: compiling the navigation kernels (first run on this machine "
-                                    "only, 10-40 s) ...", file=sys.stderr, flush=True))
+                                    "only, up to about a minute) ...", file=sys.stderr, flush=True))
     if seconds > 1.0:
         print(f"tamp-service: navigation kernels ready in {seconds:.1f} s (cached from now on)", file=sys.stderr,
               flush=True)

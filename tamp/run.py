@@ -254,8 +254,8 @@ def _main(argv) -> int:
         if not (math.isfinite(args.max_time) and args.max_time > 0):
             raise _Usage(f"--max-time must be a positive number of seconds, got {args.max_time!r}")
         world = load_world(args.world)
-        prepare(lambda: print("tamp.run: compiling the kernels (first run on this machine only, 10-40 s) ...",
-                              file=sys.stderr, flush=True))
+        prepare(lambda: print("tamp.run: compiling the kernels (first run on this machine only, up to about a "
+                              "minute) ...", file=sys.stderr, flush=True))
         # refuse a bad task before the run starts
         progress = (lambda line: print(line, file=sys.stderr, flush=True))
         t0 = time.perf_counter()
