@@ -25,9 +25,11 @@ import numba
 import numpy as np
 
 from ._geom_kernel import _ray
+from ._geom_kernel import beta_derivatives_xy as _beta_derivatives
+from ._geom_kernel import root_partials
 from ._jet import _EDGE
 
-__all__ = ["purge", "star_to_sphere", "sphere_to_point"]
+__all__ = ["purge", "star_to_sphere", "sphere_to_point", "oriented", "potential_rows"]
 
 _JIT = dict(cache=True, nogil=True)
 _TINY = float(np.finfo(float).tiny)
@@ -133,39 +135,6 @@ def _eta(a):
 
 # ---------------------------------------------------------------------------- geometry pieces
 @numba.njit(**_JIT)
-def _beta_derivatives(P, k, qx, qy):
-    """``navigation.geometry._beta_derivatives`` of row ``P[k]`` at ``(qx, qy)``."""
-    c, sn = P[k, 2], P[k, 3]
-    ihw, ihh = 1.0 / P[k, 4], 1.0 / P[k, 5]
-    dx, dy = qx - P[k, 0], qy - P[k, 1]
-    x = (dx * c + dy * sn) * ihw
-    y = (dy * c - dx * sn) * ihh
-    kk = 2.0 - 4.0 * (P[k, 6] * P[k, 6])
-    x2, y2 = x * x, y * y
-    kxy = kk * x * y
-    d = x2 * x2 + y2 * y2 + kk * x2 * y2
-    root = math.sqrt(d)
-    i1 = 0.25 / root
-    i3 = 0.5 * i1 / d
-    dd_x = x * (4.0 * x2 + 2.0 * kk * y2)
-    dd_y = y * (4.0 * y2 + 2.0 * kk * x2)
-    gx = x + dd_x * i1
-    gy = y + dd_y * i1
-    hxx = 1.0 + (12.0 * x2 + 2.0 * kk * y2) * i1 - dd_x * dd_x * i3
-    hxy = 4.0 * kxy * i1 - dd_x * dd_y * i3
-    hyy = 1.0 + (12.0 * y2 + 2.0 * kk * x2) * i1 - dd_y * dd_y * i3
-    ax, bx = c * ihw, sn * ihw
-    ay, by = -sn * ihh, c * ihh
-    beta = 0.5 * (x2 + y2 + root) - 1.0
-    b_x = gx * ax + gy * ay
-    b_y = gx * bx + gy * by
-    b_xx = hxx * ax * ax + 2.0 * hxy * ax * ay + hyy * ay * ay
-    b_xy = hxx * ax * bx + hxy * (ax * by + ay * bx) + hyy * ay * by
-    b_yy = hxx * bx * bx + 2.0 * hxy * bx * by + hyy * by * by
-    return beta, b_x, b_y, b_xx, b_xy, b_yy
-
-
-@numba.njit(**_JIT)
 def _polar(X, Y, cx, cy):
     """``_polar`` of :mod:`navigation.transforms`: jets of ``r = |q - c|`` and ``u = (q - c) / r``."""
     dx = X[0] - cx
@@ -187,22 +156,7 @@ def _polar(X, Y, cx, cy):
 def _root_jet(P, k, ox, oy, r0, ux, uy):
     """``navigation.geometry._root_jet``: the jet of the ray length ``r(u)`` of row ``P[k]``
     from ``(ox, oy)`` (``beta(o + r u) = 0``) given its value ``r0``."""
-    vx, vy = ux[0], uy[0]
-    qx = ox + r0 * vx
-    qy = oy + r0 * vy
-    _, bx, by, bxx, bxy, byy = _beta_derivatives(P, k, qx, qy)
-    inv = -1.0 / (bx * vx + by * vy)
-    ra = r0 * bx * inv
-    rb = r0 * by * inv
-    hux = bxx * vx + bxy * vy
-    huy = bxy * vx + byy * vy
-    f_rr = vx * hux + vy * huy
-    f_ra = bx + r0 * hux
-    f_rb = by + r0 * huy
-    r2 = r0 * r0
-    raa = (r2 * bxx + 2.0 * f_ra * ra + f_rr * ra * ra) * inv
-    rab = (r2 * bxy + f_ra * rb + f_rb * ra + f_rr * ra * rb) * inv
-    rbb = (r2 * byy + 2.0 * f_rb * rb + f_rr * rb * rb) * inv
+    ra, rb, raa, rab, rbb = root_partials(P, k, ox, oy, r0, ux[0], uy[0])
     return _compose2(r0, ra, rb, raa, rab, rbb, ux, uy)
 
 
@@ -354,11 +308,58 @@ def sphere_to_point(X, Y, centres, rho, delta, ws, rho0, width0, OX, OY):
 
 # ------------------------------------------------------------------------- oriented potential
 @numba.njit(**_JIT)
-def _logistic_n(z):
-    """``navigation._jet.logistic`` of one number."""
-    ez = math.exp(-abs(z))
-    q = 1.0 / (1.0 + ez)
-    return q if z >= 0 else ez * q
+def _potential(rx, ry, c, ax_, ay_, pts, inv_k):
+    """The oriented potential ``phi_O`` of :mod:`navigation.oriented` at the normalised
+    point-world coordinates ``x' = (rx, ry)`` (goal at 0) and its first and second derivatives
+    in ``x'``: the sink ``ln |x'|^2``, the dipole ``c (x'.p) / |x'|^2`` along ``p = (ax_, ay_)``
+    and the point obstacles ``-(1/K) sum_j ln |x' - P'_j|^2`` (``inv_k = 1/K``)."""
+    d = rx * rx + ry * ry
+    inv = 1.0 / d
+    inv2, inv3 = inv * inv, inv * inv * inv
+    # sink ln |x'|^2
+    f = math.log(d)
+    fx, fy = 2 * rx * inv, 2 * ry * inv
+    fxx = 2 * inv - 4 * rx * rx * inv2
+    fxy = -4 * rx * ry * inv2
+    fyy = 2 * inv - 4 * ry * ry * inv2
+    # dipole c (x'.p)/|x'|^2
+    nn = rx * ax_ + ry * ay_
+    f = f + c * nn * inv
+    fx = fx + c * (ax_ * inv - 2 * nn * rx * inv2)
+    fy = fy + c * (ay_ * inv - 2 * nn * ry * inv2)
+    fxx = fxx + c * (-4 * ax_ * rx * inv2 - 2 * nn * inv2 + 8 * nn * rx * rx * inv3)
+    fxy = fxy + c * (-2 * (ax_ * ry + ay_ * rx) * inv2 + 8 * nn * rx * ry * inv3)
+    fyy = fyy + c * (-4 * ay_ * ry * inv2 - 2 * nn * inv2 + 8 * nn * ry * ry * inv3)
+    # point obstacles -(1/K) sum_j ln |x' - P'_j|^2
+    if pts.shape[0]:
+        s0 = s1 = s2 = s3 = s4 = s5 = 0.0
+        for j in range(pts.shape[0]):
+            dx = rx - pts[j, 0]
+            dy = ry - pts[j, 1]
+            d2 = dx * dx + dy * dy
+            iv = 1.0 / d2
+            iv2 = iv * iv
+            s0 += math.log(d2)
+            s1 += 2 * dx * iv
+            s2 += 2 * dy * iv
+            s3 += 2 * iv - 4 * dx * dx * iv2
+            s4 += -4 * dx * dy * iv2
+            s5 += 2 * iv - 4 * dy * dy * iv2
+        f = f - inv_k * s0
+        fx = fx - inv_k * s1
+        fy = fy - inv_k * s2
+        fxx = fxx - inv_k * s3
+        fxy = fxy - inv_k * s4
+        fyy = fyy - inv_k * s5
+    return f, fx, fy, fxx, fxy, fyy
+
+
+@numba.njit(error_model="numpy", **_JIT)
+def potential_rows(rx, ry, c, axis, pts, inv_k, out):
+    """:func:`_potential` at every ``(rx[i], ry[i])`` into ``out (N, 6)``."""
+    for i in range(len(rx)):
+        out[i, 0], out[i, 1], out[i, 2], out[i, 3], out[i, 4], out[i, 5] = _potential(
+            rx[i], ry[i], c, axis[0], axis[1], pts, inv_k)
 
 
 @numba.njit(error_model="numpy", **_JIT)
@@ -388,47 +389,12 @@ def oriented(X, Y, pg, A, c, axis, pts, inv_k, mu, floor, out_s, out_v, out_f):
         Xp = _add(_scale(cx, a00), _scale(cy, a01))
         Yp = _add(_scale(cx, a10), _scale(cy, a11))
         rx, ry = Xp[0], Yp[0]
-        # phi_O and its derivatives in x' (OrientedField._potential_derivatives)
-        d = rx * rx + ry * ry
-        inv = 1.0 / d
-        inv2, inv3 = inv * inv, inv * inv * inv
-        f = math.log(d)
-        fx, fy = 2 * rx * inv, 2 * ry * inv
-        fxx = 2 * inv - 4 * rx * rx * inv2
-        fxy = -4 * rx * ry * inv2
-        fyy = 2 * inv - 4 * ry * ry * inv2
-        nn = rx * ax_ + ry * ay_
-        f = f + c * nn * inv
-        fx = fx + c * (ax_ * inv - 2 * nn * rx * inv2)
-        fy = fy + c * (ay_ * inv - 2 * nn * ry * inv2)
-        fxx = fxx + c * (-4 * ax_ * rx * inv2 - 2 * nn * inv2 + 8 * nn * rx * rx * inv3)
-        fxy = fxy + c * (-2 * (ax_ * ry + ay_ * rx) * inv2 + 8 * nn * rx * ry * inv3)
-        fyy = fyy + c * (-4 * ay_ * ry * inv2 - 2 * nn * inv2 + 8 * nn * ry * ry * inv3)
-        if pts.shape[0]:
-            s0 = s1 = s2 = s3 = s4 = s5 = 0.0
-            for j in range(pts.shape[0]):
-                dx = rx - pts[j, 0]
-                dy = ry - pts[j, 1]
-                d2 = dx * dx + dy * dy
-                iv = 1.0 / d2
-                iv2 = iv * iv
-                s0 += math.log(d2)
-                s1 += 2 * dx * iv
-                s2 += 2 * dy * iv
-                s3 += 2 * iv - 4 * dx * dx * iv2
-                s4 += -4 * dx * dy * iv2
-                s5 += 2 * iv - 4 * dy * dy * iv2
-            f = f - inv_k * s0
-            fx = fx - inv_k * s1
-            fy = fy - inv_k * s2
-            fxx = fxx - inv_k * s3
-            fxy = fxy - inv_k * s4
-            fyy = fyy - inv_k * s5
+        f, fx, fy, fxx, fxy, fyy = _potential(rx, ry, c, ax_, ay_, pts, inv_k)
         phi = _compose2(f, fx, fy, fxx, fxy, fyy, Xp, Yp)
         v, g0, g1, h00, h01, h11 = phi
-        s = _logistic_n(v)
-        sc = s * _logistic_n(-v)
-        scc = sc * (_logistic_n(-v) - s)
+        s = _logistic(v)
+        sc = s * _logistic(-v)
+        scc = sc * (_logistic(-v) - s)
         out_s[n, 0] = mu * s
         out_v[n, 0] = -mu * sc * g0
         out_v[n, 1] = -mu * sc * g1

@@ -38,7 +38,7 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["point_xy", "point_xy_cs", "beta_rows", "boundary_jet", "signed_distance_rows", "ray_length_rows", "far_gap_rows", "gap_bound_rows", "wall_bound_rows", "sample_table", "boundary_points", "offset_points", "beta_gradient", "refine_brackets"]
+__all__ = ["point_xy", "point_xy_cs", "beta_rows", "beta_derivatives_xy", "beta_derivatives_rows", "root_partials", "root_partials_rows", "boundary_jet", "signed_distance_rows", "ray_length_rows", "far_gap_rows", "gap_bound_rows", "wall_bound_rows", "sample_table", "boundary_points", "offset_points", "beta_gradient", "refine_brackets"]
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -843,3 +843,90 @@ def gap_bound_rows(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     if len(A) == 0:
         return np.empty(0)
     return _gap_bound_kernel(A, B)
+
+
+@numba.njit(inline="always", **_JIT)
+def beta_derivatives_xy(P, k, qx, qy):
+    """``beta`` of row ``P[k]`` at ``(qx, qy)`` with its exact gradient and packed Hessian in
+    ``q``: ``(beta, b_x, b_y, b_xx, b_xy, b_yy)``, the analytic formulas of eq. (4) (used away from
+    the centre, where ``x^4 + y^4 + (2 - 4s^2) x^2 y^2 > 0``; NaN at the centre)."""
+    c, sn = P[k, 2], P[k, 3]
+    ihw, ihh = 1.0 / P[k, 4], 1.0 / P[k, 5]
+    dx, dy = qx - P[k, 0], qy - P[k, 1]
+    x = (dx * c + dy * sn) * ihw
+    y = (dy * c - dx * sn) * ihh
+    kk = 2.0 - 4.0 * (P[k, 6] * P[k, 6])
+    x2, y2 = x * x, y * y
+    kxy = kk * x * y
+    d = x2 * x2 + y2 * y2 + kk * x2 * y2
+    root = math.sqrt(d)
+    i1 = 0.25 / root  # 1 / (4 sqrt(D))
+    i3 = 0.5 * i1 / d  # 1 / (8 D^(3/2))
+    dd_x = x * (4.0 * x2 + 2.0 * kk * y2)
+    dd_y = y * (4.0 * y2 + 2.0 * kk * x2)
+    gx = x + dd_x * i1
+    gy = y + dd_y * i1
+    hxx = 1.0 + (12.0 * x2 + 2.0 * kk * y2) * i1 - dd_x * dd_x * i3
+    hxy = 4.0 * kxy * i1 - dd_x * dd_y * i3
+    hyy = 1.0 + (12.0 * y2 + 2.0 * kk * x2) * i1 - dd_y * dd_y * i3
+    # back to q: (x, y) = M (q - c) with M = [[c, s] / hw, [-s, c] / hh]
+    ax, bx = c * ihw, sn * ihw
+    ay, by = -sn * ihh, c * ihh
+    beta = 0.5 * (x2 + y2 + root) - 1.0
+    b_x = gx * ax + gy * ay
+    b_y = gx * bx + gy * by
+    b_xx = hxx * ax * ax + 2.0 * hxy * ax * ay + hyy * ay * ay
+    b_xy = hxx * ax * bx + hxy * (ax * by + ay * bx) + hyy * ay * by
+    b_yy = hxx * bx * bx + 2.0 * hxy * bx * by + hyy * by * by
+    return beta, b_x, b_y, b_xx, b_xy, b_yy
+
+
+@numba.njit(error_model="numpy", **_JIT)  # 0 / 0 at a centre is NaN, as in numpy
+def _beta_derivatives_kernel(P, qx, qy, out):
+    for i in range(len(qx)):
+        out[i, 0], out[i, 1], out[i, 2], out[i, 3], out[i, 4], out[i, 5] = beta_derivatives_xy(P, i, qx[i], qy[i])
+
+
+def beta_derivatives_rows(P: np.ndarray, qx: np.ndarray, qy: np.ndarray) -> np.ndarray:
+    """:func:`beta_derivatives_xy` of row ``P[i]`` at ``(qx[i], qy[i])`` for every ``i``: shape ``(N, 6)``."""
+    out = np.empty((len(qx), 6))
+    _beta_derivatives_kernel(_arr(P).reshape(-1, 7), _arr(qx).reshape(-1), _arr(qy).reshape(-1), out)
+    return out
+
+
+@numba.njit(inline="always", **_JIT)
+def root_partials(P, k, ox, oy, r0, vx, vy):
+    """Partials ``(r_a, r_b, r_aa, r_ab, r_bb)`` of the ray length ``r(u)`` of row ``P[k]`` from
+    ``(ox, oy)`` (``beta(o + r u) = 0``, value ``r0``) with respect to the direction
+    ``u = (a, b)`` at ``u = (vx, vy)``: the implicit function theorem on ``F(r, u) = beta(o + r u)``,
+    ``r_a = -F_a / F_r``, ``r_ab = -(F_ab + F_ar r_b + F_br r_a + F_rr r_a r_b) / F_r``."""
+    qx = ox + r0 * vx
+    qy = oy + r0 * vy
+    _, bx, by, bxx, bxy, byy = beta_derivatives_xy(P, k, qx, qy)
+    inv = -1.0 / (bx * vx + by * vy)  # -1 / F_r
+    ra = r0 * bx * inv
+    rb = r0 * by * inv
+    hux = bxx * vx + bxy * vy  # (H u)_x
+    huy = bxy * vx + byy * vy
+    f_rr = vx * hux + vy * huy
+    f_ra = bx + r0 * hux
+    f_rb = by + r0 * huy
+    r2 = r0 * r0
+    raa = (r2 * bxx + 2.0 * f_ra * ra + f_rr * ra * ra) * inv
+    rab = (r2 * bxy + f_ra * rb + f_rb * ra + f_rr * ra * rb) * inv
+    rbb = (r2 * byy + 2.0 * f_rb * rb + f_rr * rb * rb) * inv
+    return ra, rb, raa, rab, rbb
+
+
+@numba.njit(error_model="numpy", **_JIT)
+def _root_partials_kernel(P, o, r0, vx, vy, out):
+    for i in range(len(r0)):
+        out[i, 0], out[i, 1], out[i, 2], out[i, 3], out[i, 4] = root_partials(P, i, o[i, 0], o[i, 1], r0[i], vx[i], vy[i])
+
+
+def root_partials_rows(P: np.ndarray, o: np.ndarray, r0: np.ndarray, vx: np.ndarray, vy: np.ndarray) -> np.ndarray:
+    """:func:`root_partials` of row ``P[i]`` from ``o[i]`` for every ``i``: shape ``(N, 5)``."""
+    out = np.empty((len(r0), 5))
+    _root_partials_kernel(_arr(P).reshape(-1, 7), _arr(o).reshape(-1, 2), _arr(r0).reshape(-1), _arr(vx).reshape(-1),
+                          _arr(vy).reshape(-1), out)
+    return out

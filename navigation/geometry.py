@@ -716,33 +716,20 @@ def beta_gradient_rows(P: np.ndarray, qx: np.ndarray, qy: np.ndarray) -> tuple[n
 def _beta_derivatives(p: np.ndarray, qx: np.ndarray, qy: np.ndarray):
     """``beta`` at points ``(qx, qy)`` with its exact gradient and packed Hessian in ``q``.
 
-    Plain arrays (analytic formulas of eq. (4), no jets), broadcasting ``p[..., col]`` against
-    ``qx``; used away from the centre (``x^4 + y^4 + (2 - 4s^2) x^2 y^2 > 0``). Returns
-    ``(beta, b_x, b_y, b_xx, b_xy, b_yy)``.
+    Analytic formulas of eq. (4) (no jets), broadcasting the rows ``p (..., 7)`` against ``qx``,
+    ``qy``; used away from the centre (``x^4 + y^4 + (2 - 4s^2) x^2 y^2 > 0``; NaN at it).
+    Compiled: :func:`navigation._geom_kernel.beta_derivatives_xy`, the one copy of the formulas
+    (the transformation chain's kernels use it too). Returns
+    ``(beta, b_x, b_y, b_xx, b_xy, b_yy)``, each of the broadcast shape.
     """
-    c, sn, ihw, ihh, x, y, k, x2, y2 = _local(p, qx, qy)
-    kxy = k * x * y
-    d = x2 * x2 + y2 * y2 + k * x2 * y2
-    root = np.sqrt(d)
-    i1 = 0.25 / root  # 1 / (4 sqrt(D))
-    i3 = 0.5 * i1 / d  # 1 / (8 D^(3/2))
-    dd_x = x * (4.0 * x2 + 2.0 * k * y2)
-    dd_y = y * (4.0 * y2 + 2.0 * k * x2)
-    gx = x + dd_x * i1
-    gy = y + dd_y * i1
-    hxx = 1.0 + (12.0 * x2 + 2.0 * k * y2) * i1 - dd_x * dd_x * i3
-    hxy = 4.0 * kxy * i1 - dd_x * dd_y * i3
-    hyy = 1.0 + (12.0 * y2 + 2.0 * k * x2) * i1 - dd_y * dd_y * i3
-    # back to q: (x, y) = M (q - c) with M = [[c, s] / hw, [-s, c] / hh]
-    ax, bx = c * ihw, sn * ihw
-    ay, by = -sn * ihh, c * ihh
-    beta = 0.5 * (x2 + y2 + root) - 1.0
-    b_x = gx * ax + gy * ay
-    b_y = gx * bx + gy * by
-    b_xx = hxx * ax * ax + 2.0 * hxy * ax * ay + hyy * ay * ay
-    b_xy = hxx * ax * bx + hxy * (ax * by + ay * bx) + hyy * ay * by
-    b_yy = hxx * bx * bx + 2.0 * hxy * bx * by + hyy * by * by
-    return beta, b_x, b_y, b_xx, b_xy, b_yy
+    p = np.asarray(p, dtype=float)
+    qx = np.asarray(qx, dtype=float)
+    qy = np.asarray(qy, dtype=float)
+    shape = np.broadcast_shapes(p.shape[:-1], qx.shape, qy.shape)
+    P = np.broadcast_to(p, shape + (7,)).reshape(-1, 7)
+    out = _geom_kernel.beta_derivatives_rows(P, np.broadcast_to(qx, shape).reshape(-1),
+                                             np.broadcast_to(qy, shape).reshape(-1))
+    return tuple(out[:, j].reshape(shape) for j in range(6))
 
 
 def _beta_value(p: np.ndarray, qx: np.ndarray, qy: np.ndarray) -> np.ndarray:
@@ -775,23 +762,13 @@ def _root_jet(p: np.ndarray, o: np.ndarray, r0: np.ndarray, ux: Jet, uy: Jet) ->
     if ux.order == 0:
         return Jet.constant(r0, 0)
     vx, vy = ux.v, uy.v
-    qx = o[..., 0] + r0 * vx
-    qy = o[..., 1] + r0 * vy
-    _, bx, by, bxx, bxy, byy = _beta_derivatives(p, qx, qy)
-    inv = -1.0 / (bx * vx + by * vy)  # -1 / F_r
-    ra = r0 * bx * inv
-    rb = r0 * by * inv
+    n = len(vx)
+    # compiled (navigation._geom_kernel.root_partials, which the chain's kernels use too)
+    out = _geom_kernel.root_partials_rows(np.broadcast_to(p, (n, 7)), np.broadcast_to(o, (n, 2)),
+                                          np.broadcast_to(r0, (n,)), vx, vy)
+    ra, rb, raa, rab, rbb = (out[:, j] for j in range(5))
     if ux.order == 1:
         return Jet.compose2(r0, ra, rb, None, None, None, ux, uy)
-    hux = bxx * vx + bxy * vy  # (H u)_x
-    huy = bxy * vx + byy * vy
-    f_rr = vx * hux + vy * huy
-    f_ra = bx + r0 * hux
-    f_rb = by + r0 * huy
-    r2 = r0 * r0
-    raa = (r2 * bxx + 2.0 * f_ra * ra + f_rr * ra * ra) * inv
-    rab = (r2 * bxy + f_ra * rb + f_rb * ra + f_rr * ra * rb) * inv
-    rbb = (r2 * byy + 2.0 * f_rb * rb + f_rr * rb * rb) * inv
     return Jet.compose2(r0, ra, rb, raa, rab, rbb, ux, uy)
 
 

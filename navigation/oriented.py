@@ -418,41 +418,15 @@ class OrientedField:
         return Jet.compose2(*self._potential_derivatives(x.v, y.v), x, y)
 
     def _potential_derivatives(self, rx: np.ndarray, ry: np.ndarray):
-        """``phi_O`` and its first and second derivatives w.r.t. ``x' = (rx, ry)``."""
-        d = rx * rx + ry * ry
-        inv = 1.0 / d
-        inv2, inv3 = inv * inv, inv * inv * inv
-        # sink ln |x'|^2
-        f = np.log(d)
-        fx, fy = 2 * rx * inv, 2 * ry * inv
-        fxx = 2 * inv - 4 * rx * rx * inv2
-        fxy = -4 * rx * ry * inv2
-        fyy = 2 * inv - 4 * ry * ry * inv2
-        # dipole c (x'.p)/|x'|^2
-        c = self.strength
-        ax, ay = self._axis
-        n = rx * ax + ry * ay
-        f = f + c * n * inv
-        fx = fx + c * (ax * inv - 2 * n * rx * inv2)
-        fy = fy + c * (ay * inv - 2 * n * ry * inv2)
-        fxx = fxx + c * (-4 * ax * rx * inv2 - 2 * n * inv2 + 8 * n * rx * rx * inv3)
-        fxy = fxy + c * (-2 * (ax * ry + ay * rx) * inv2 + 8 * n * rx * ry * inv3)
-        fyy = fyy + c * (-4 * ay * ry * inv2 - 2 * n * inv2 + 8 * n * ry * ry * inv3)
-        # point obstacles -(1/K) sum ln |x' - P'_j|^2
-        if len(self._points):
-            k = self._inv_k
-            dx = rx[:, None] - self._points[None, :, 0]
-            dy = ry[:, None] - self._points[None, :, 1]
-            d2 = dx * dx + dy * dy
-            iv = 1.0 / d2
-            iv2 = iv * iv
-            f = f - k * np.log(d2).sum(1)
-            fx = fx - k * (2 * dx * iv).sum(1)
-            fy = fy - k * (2 * dy * iv).sum(1)
-            fxx = fxx - k * (2 * iv - 4 * dx * dx * iv2).sum(1)
-            fxy = fxy - k * (-4 * dx * dy * iv2).sum(1)
-            fyy = fyy - k * (2 * iv - 4 * dy * dy * iv2).sum(1)
-        return f, fx, fy, fxx, fxy, fyy
+        """``phi_O`` and its first and second derivatives w.r.t. ``x' = (rx, ry)``: the sink
+        ``ln |x'|^2``, the dipole ``c (x'.p)/|x'|^2`` and the point obstacles
+        ``-(1/K) sum_j ln |x' - P'_j|^2`` (compiled: :func:`navigation._chain_kernel.potential_rows`,
+        the formulas the field's kernel uses)."""
+        rx = np.ascontiguousarray(rx, dtype=float).reshape(-1)
+        ry = np.ascontiguousarray(ry, dtype=float).reshape(-1)
+        out = np.empty((len(rx), 6))
+        _chain_kernel.potential_rows(rx, ry, float(self.strength), self._axis, self._points, self._inv_k, out)
+        return tuple(out[:, j] for j in range(6))
 
     def _evaluate(self, pts: np.ndarray) -> OrientedEval:
         n = len(pts)
