@@ -81,7 +81,10 @@ def test_compiled_oriented_field_matches_numpy(name, monkeypatch):
     values, field, Jacobian, directions and their gradients, the potential's derivatives; the
     free and degenerate flags exactly. The push-forward gradient solves ``dx'/dq``, whose
     condition number reaches 1e7 next to chained walls: there the two 2 x 2 solves (Cramer's
-    rule, LAPACK's LU) differ by up to about 1e-8 relative, hence its looser bound."""
+    rule, LAPACK's LU) differ by up to about 1e-8 relative, hence its looser bound. The two share
+    the point-world potential's formulas (``_chain_kernel._potential``; its derivatives are
+    checked against finite differences in ``tests/test_oriented.py``): what is compared here is
+    the composition with the chain's jets, the logistic, the directions and their gradients."""
     from navigation import oriented
     from navigation.oriented import OrientedEval, OrientedField
 
