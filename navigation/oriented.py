@@ -450,9 +450,13 @@ class OrientedField:
         if len(idx):
             x, y = self.nf.chain.apply(*Jet.variables(pts[idx], 2))
             core = self._core_compiled if _COMPILED else self._core_numpy
-            (value[idx], field[idx], jac[idx], angle[idx], grad_angle[idx], flat, pot_g[idx], pot_h[idx],
+            (value[idx], field[idx], jac[idx], angle[idx], grad_angle[idx], flat, g, H,
              flow_angle[idx], flow_gradient[idx]) = core(x, y)
             degenerate[idx] = flat
+            # the potential's derivatives where they are regular and finite, else zeros
+            ok = ~flat & np.isfinite(g).all(axis=1) & np.isfinite(H).all(axis=(1, 2))
+            pot_g[idx] = np.where(ok[:, None], g, 0.0)
+            pot_h[idx] = np.where(ok[:, None, None], H, 0.0)
         out = np.nonzero(~free)[0]
         if len(out):
             back = -np.asarray(self.nf.evaluate(pts[out], order=1).gradient)
@@ -467,9 +471,8 @@ class OrientedField:
 
     def _core_numpy(self, x: Jet, y: Jet):
         """The field at free points away from the goal from the chain's jets ``x``, ``y``:
-        ``(value, field, jacobian, angle, angle_gradient, flat, potential_gradient,
-        potential_hessian, flow_angle, flow_gradient)`` (numpy; the reference of
-        :meth:`_core_compiled`)."""
+        ``(value, field, jacobian, angle, angle_gradient, flat, gradient and Hessian of phi_O,
+        flow_angle, flow_gradient)`` (numpy; the reference of :meth:`_core_compiled`)."""
         mu = self.mu
         m = len(x)
         a = self._A
@@ -495,12 +498,9 @@ class OrientedField:
         # d atan2(a_y, a_x)/dq = (a_x grad a_y - a_y grad a_x)/|a|^2 with grad a = -H
         ga = (-a[:, 0, None] * H[:, 1, :] + a[:, 1, None] * H[:, 0, :]) / safe[:, None]
         grad_angle = np.where(flat[:, None], 0.0, ga)
-        ok = ~flat & np.isfinite(g).all(axis=1) & np.isfinite(H).all(axis=(1, 2))
-        pot_g = np.where(ok[:, None], g, 0.0)
-        pot_h = np.where(ok[:, None, None], H, 0.0)
         flow_angle, flow_gradient = angle.copy(), grad_angle.copy()
         self._flow(X, Y, fx, fy, fxx, fxy, fyy, ~flat, np.arange(m), flow_angle, flow_gradient)
-        return value, field, jac, angle, grad_angle, flat, pot_g, pot_h, flow_angle, flow_gradient
+        return value, field, jac, angle, grad_angle, flat, g, H, flow_angle, flow_gradient
 
     def _core_compiled(self, x: Jet, y: Jet):
         """:meth:`_core_numpy` in the compiled kernel :func:`navigation._chain_kernel.oriented`
@@ -510,13 +510,9 @@ class OrientedField:
         _chain_kernel.oriented(np.ascontiguousarray(x.a), np.ascontiguousarray(y.a), self._pg, self._A,
                                float(self.strength), self._axis, self._points, self._inv_k, self.mu,
                                GRADIENT_FLOOR, out_s, out_v, out_f)
-        flat = out_s[:, 2] > 0.5
-        H = out_f[:, [4, 5, 5, 6]].reshape(m, 2, 2)
-        g = out_v[:, 6:8]
-        ok = ~flat & np.isfinite(g).all(axis=1) & np.isfinite(H).all(axis=(1, 2))
         flow = out_s[:, 3] > 0.5
-        return (out_s[:, 0], out_v[:, 0:2], out_f[:, 0:4].reshape(m, 2, 2), out_s[:, 1], out_v[:, 2:4], flat,
-                np.where(ok[:, None], g, 0.0), np.where(ok[:, None, None], H, 0.0),
+        return (out_s[:, 0], out_v[:, 0:2], out_f[:, 0:4].reshape(m, 2, 2), out_s[:, 1], out_v[:, 2:4],
+                out_s[:, 2] > 0.5, out_v[:, 6:8], out_f[:, [4, 5, 5, 6]].reshape(m, 2, 2),
                 np.where(flow, out_s[:, 4], out_s[:, 1]), np.where(flow[:, None], out_v[:, 4:6], out_v[:, 2:4]))
 
     @staticmethod
