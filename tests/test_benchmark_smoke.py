@@ -92,3 +92,23 @@ def test_executive_benchmark_quick_with_jitter_and_overrides(tmp_path, capsys):
         exe_bench.main(["--quick", "--set", "no_such_field=1", "--out", str(out)])
     with pytest.raises(SystemExit, match="align_angle"):
         exe_bench.main(["--quick", "--set", "align_angle=2.0", "--out", str(out)])
+
+
+def test_executive_benchmark_controller_override():
+    """``--set controller={...}`` changes the named ``ControllerConfig`` fields of the
+    executive's default controller; ``null`` selects the rotated gradient; an unknown field is
+    a one-line error."""
+    import pytest
+
+    from benchmarks import executive as exe_bench
+    from navigation.control import RATE_LIMITED
+    from tamp.executive import ExecutiveConfig
+
+    over = exe_bench._overrides(['controller={"accel_max": 1.0, "alpha_max": 6.0, "brake_share": 0.5}'])
+    ctl = over["controller"]
+    base = ExecutiveConfig().controller
+    assert ctl.push_forward == base.push_forward and ctl.k_v == base.k_v
+    assert {k: getattr(ctl, k) for k in RATE_LIMITED} == dict(RATE_LIMITED)
+    assert exe_bench._overrides(["controller=null"]) == {"controller": None}
+    with pytest.raises(SystemExit, match="no_such_gain"):
+        exe_bench._overrides(['controller={"no_such_gain": 1}'])
