@@ -253,7 +253,7 @@ def _overrides(pairs: Sequence[str]) -> dict:
             base = ExecutiveConfig().controller
             try:
                 out[name] = dataclasses.replace(base, **out[name])
-            except (TypeError, ValueError) as err:
+            except Exception as err:  # unknown field (TypeError) or the config's validation
                 raise SystemExit(f"python -m benchmarks.executive: --set controller={value}: {err}") from None
     return out
 

@@ -112,3 +112,5 @@ def test_executive_benchmark_controller_override():
     assert exe_bench._overrides(["controller=null"]) == {"controller": None}
     with pytest.raises(SystemExit, match="no_such_gain"):
         exe_bench._overrides(['controller={"no_such_gain": 1}'])
+    with pytest.raises(SystemExit, match="accel_max"):
+        exe_bench._overrides(['controller={"accel_max": -1}'])
