@@ -41,7 +41,9 @@ their neighbours) agrees modulo 90 degrees, runs that still bend cut where they 
 of a cut split into its connected components, :func:`_connected`) - and the
 runs one rectangle explains together without swallowing free space (the faces of one wall) are
 merged back; every piece is fitted on its own, and adjacent pieces overlap once inflated,
-forming a tree (docs/perception.md, "Decomposition").
+forming a tree (cycles broken by :func:`_break_cycles`); a piece is then refitted without the
+returns its neighbours already contain when that makes it smaller and changes no overlap
+(:func:`_tighten`; docs/perception.md, "Decomposition").
 
 :func:`inflate` grows a squircle by the robot radius (configuration-space obstacle).
 """
@@ -986,6 +988,46 @@ def _break_cycles(q, vw, free, fits: list[Fit], cfg: PerceptionConfig, grow: flo
     return fits
 
 
+_TIGHTEN = True
+_TIGHTEN_AREA = 0.9
+
+
+def _tighten(q, vw, fr, fits: list[Fit], cfg: PerceptionConfig, grow: float, init, cache) -> list[Fit]:
+    """Pieces refitted without the returns other pieces already contain (within
+    ``inside_tol``): at a junction the piece of one arm need not cover the returns of the
+    other. A piece is replaced by the fit of its own returns when that fit explains them, keeps
+    the free space free, is smaller by ``1 - _TIGHTEN_AREA`` and overlaps (grown by ``grow``)
+    exactly the pieces the old one did (the pieces' tree is unchanged); the returns it gave up
+    go to the piece that contains them best. Largest pieces first."""
+    fits = list(fits)
+    for a in sorted(range(len(fits)), key=lambda k: -fits[k].squircle.area):
+        g = fits[a]
+        others = [k for k in range(len(fits)) if k != a]
+        if not others:
+            break
+        err = np.array([radial_error(fits[k].squircle, q[g.indices]) for k in others])
+        covered = err.min(axis=0) <= cfg.inside_tol
+        keep = g.indices[~covered]
+        if not covered.any() or len(keep) < cfg.min_piece:
+            continue
+        f = _fit_piece(q, vw, fr, keep, cfg, init, cache)
+        if f.rms > cfg.split_tol or f.p95 > 3 * cfg.split_tol or f.squircle.area > _TIGHTEN_AREA * g.squircle.area:
+            continue
+        if fr is not None and len(fr) and int(np.count_nonzero(radial_error(f.squircle, fr) < -cfg.free_tol)):
+            continue
+        if float(radial_error(g.squircle, f.squircle.boundary_points(64)).max()) > cfg.inside_tol:
+            continue  # not within the old piece: it could overlap others once inflated
+        if any(_overlap(f.squircle, fits[k].squircle, grow) != _overlap(g.squircle, fits[k].squircle, grow)
+               for k in others):
+            continue
+        owner = np.array(others)[np.argmin(err[:, covered], axis=0)]
+        fits[a] = Fit(f.squircle, f.rms, f.closed, keep, f.p95)
+        for k in np.unique(owner):
+            h = fits[k]
+            fits[k] = Fit(h.squircle, h.rms, h.closed, np.concatenate((h.indices, g.indices[covered][owner == k])), h.p95)
+    return fits
+
+
 def _shrink(q, vw, fr, fits: list[Fit], cyc, adj, errs, cfg: PerceptionConfig, grow: float, init, cache):
     """For :func:`_break_cycles`: the piece of the cycle ``cyc`` refitted to its returns that no
     other piece contains (within ``inside_tol``) whose fit overlaps fewer of its neighbours in
@@ -1212,8 +1254,11 @@ def fit_cluster(points, *, views=None, free=None, config: PerceptionConfig | Non
         return _kept_records(cache, [one])
     if grow > 0:
         fits = _break_cycles(q, vw, free, fits, cfg, grow, init, cache)
+    loose = [_cell_key(q[f.indices], cfg) for f in fits]
+    if _TIGHTEN:
+        fits = _tighten(q, vw, fr, fits, cfg, grow, init, cache)
     # keep only the pieces of this decomposition (bounded memory)
-    keep = {_cell_key(q[f.indices], cfg) for f in fits}
+    keep = {_cell_key(q[f.indices], cfg) for f in fits} | set(loose)
     for k in [k for k in cache if k not in ("one", "err") and k not in keep and k not in used]:
         del cache[k]
     return _kept_records(cache, fits)
