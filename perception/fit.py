@@ -990,16 +990,30 @@ def _break_cycles(q, vw, free, fits: list[Fit], cfg: PerceptionConfig, grow: flo
 
 _TIGHTEN = True
 _TIGHTEN_AREA = 0.9
+_TIGHTEN_PASSES = 3
 
 
 def _tighten(q, vw, fr, fits: list[Fit], cfg: PerceptionConfig, grow: float, init, cache) -> list[Fit]:
     """Pieces refitted without the returns other pieces already contain (within
     ``inside_tol``): at a junction the piece of one arm need not cover the returns of the
     other. A piece is replaced by the fit of its own returns when that fit explains them, keeps
-    the free space free, is smaller by ``1 - _TIGHTEN_AREA`` and overlaps (grown by ``grow``)
+    the free space free, is smaller by ``1 - _TIGHTEN_AREA``, lies within the old piece (so that,
+    inflated by any amount, it overlaps nothing the old one did not) and overlaps (grown by ``grow``)
     exactly the pieces the old one did (the pieces' tree is unchanged); the returns it gave up
-    go to the piece that contains them best. Largest pieces first."""
+    go to the piece that contains them best. Largest pieces first, in passes until no piece
+    changes (at most ``_TIGHTEN_PASSES``: a piece tightened later can leave returns of an earlier
+    one to it alone, `random13` noisy: a group's IoU 0.734 after one pass, 0.827 after two)."""
     fits = list(fits)
+    for _ in range(_TIGHTEN_PASSES):
+        fits, changed = _tighten_pass(q, vw, fr, fits, cfg, grow, init, cache)
+        if not changed:
+            break
+    return fits
+
+
+def _tighten_pass(q, vw, fr, fits: list[Fit], cfg: PerceptionConfig, grow: float, init, cache):
+    """One pass of :func:`_tighten`: ``(fits, whether any piece changed)``."""
+    changed = False
     for a in sorted(range(len(fits)), key=lambda k: -fits[k].squircle.area):
         g = fits[a]
         others = [k for k in range(len(fits)) if k != a]
@@ -1022,10 +1036,11 @@ def _tighten(q, vw, fr, fits: list[Fit], cfg: PerceptionConfig, grow: float, ini
             continue
         owner = np.array(others)[np.argmin(err[:, covered], axis=0)]
         fits[a] = Fit(f.squircle, f.rms, f.closed, keep, f.p95)
+        changed = True
         for k in np.unique(owner):
             h = fits[k]
             fits[k] = Fit(h.squircle, h.rms, h.closed, np.concatenate((h.indices, g.indices[covered][owner == k])), h.p95)
-    return fits
+    return fits, changed
 
 
 def _shrink(q, vw, fr, fits: list[Fit], cyc, adj, errs, cfg: PerceptionConfig, grow: float, init, cache):
