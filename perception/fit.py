@@ -967,8 +967,7 @@ def _break_cycles(q, vw, free, fits: list[Fit], cfg: PerceptionConfig, grow: flo
                 a, f, rest = shrunk
                 fits[a] = f
                 for k, idx_k in rest:
-                    g = fits[k]
-                    fits[k] = Fit(g.squircle, g.rms, g.closed, np.concatenate((g.indices, idx_k)), g.p95)
+                    _hand_over(fits, k, idx_k)
                 continue
         if drop is not None:
             area = sum(g.squircle.area for g in fits)
@@ -978,9 +977,7 @@ def _break_cycles(q, vw, free, fits: list[Fit], cfg: PerceptionConfig, grow: flo
                 keep_idx = fits[drop].indices
                 del fits[drop]
                 # its points stay explained: give them to the piece that contains them best
-                k = int(np.argmin([radial_error(g.squircle, q[keep_idx]).max() for g in fits]))
-                g = fits[k]
-                fits[k] = Fit(g.squircle, g.rms, g.closed, np.concatenate((g.indices, keep_idx)), g.p95)
+                _hand_over(fits, int(np.argmin([radial_error(g.squircle, q[keep_idx]).max() for g in fits])), keep_idx)
                 continue
         _, a, b, idx, f = best
         fits[a] = Fit(f.squircle, f.rms, f.closed, idx, f.p95)
@@ -1038,9 +1035,14 @@ def _tighten_pass(q, vw, fr, fits: list[Fit], cfg: PerceptionConfig, grow: float
         fits[a] = Fit(f.squircle, f.rms, f.closed, keep, f.p95)
         changed = True
         for k in np.unique(owner):
-            h = fits[k]
-            fits[k] = Fit(h.squircle, h.rms, h.closed, np.concatenate((h.indices, g.indices[covered][owner == k])), h.p95)
+            _hand_over(fits, int(k), g.indices[covered][owner == k])
     return fits, changed
+
+
+def _hand_over(fits: list[Fit], k: int, idx: np.ndarray) -> None:
+    """Give the returns ``idx`` (which piece ``k`` contains) to piece ``k`` of ``fits``, in place."""
+    g = fits[k]
+    fits[k] = Fit(g.squircle, g.rms, g.closed, np.concatenate((g.indices, idx)), g.p95)
 
 
 def _shrink(q, vw, fr, fits: list[Fit], cyc, adj, errs, cfg: PerceptionConfig, grow: float, init, cache):
