@@ -355,11 +355,7 @@ class Chain(_Stage):
             last = self._last[0]
             if last is not None and last[0] == key:
                 return Jet(last[1].copy()), Jet(last[2].copy())
-        if x.a.ndim == 2:
-            x, y = self._apply_compiled(x, y)
-        else:
-            for st in self.stages:
-                x, y = st.apply(x, y)
+        x, y = self._apply_compiled(x, y)
         if key is not None:
             self._last[0] = (key, x.a.copy(), y.a.copy())
         return x, y
@@ -368,26 +364,28 @@ class Chain(_Stage):
         """The stages in the compiled kernels of :mod:`navigation._chain_kernel` (the same
         formulas point by point; the stages' arrays are packed once per chain). The kernels
         carry second-order jets; lower orders are padded with zero derivatives and cut back, so
-        the values (and gradients) are the same bits at every order."""
+        the values (and gradients) are the same bits at every order. Jets of any leading shape
+        ``(..., C)`` run as rows ``(-1, C)``."""
         calls = self._compiled[0]
         if calls is None:
             calls = self._compiled[0] = [_kernel_call(st) for st in self.stages]
-        c = x.a.shape[-1]
+        shape, c = x.a.shape[:-1], x.a.shape[-1]
+        xa, ya = x.a.reshape(-1, c), y.a.reshape(-1, c)
         if c == 6:
-            X = np.ascontiguousarray(x.a, dtype=float)
-            Y = np.ascontiguousarray(y.a, dtype=float)
+            X = np.ascontiguousarray(xa, dtype=float)
+            Y = np.ascontiguousarray(ya, dtype=float)
         else:
-            X = np.zeros((x.a.shape[0], 6))
-            Y = np.zeros((y.a.shape[0], 6))
-            X[:, :c] = x.a
-            Y[:, :c] = y.a
+            X = np.zeros((xa.shape[0], 6))
+            Y = np.zeros((ya.shape[0], 6))
+            X[:, :c] = xa
+            Y[:, :c] = ya
         for kernel, args in calls:
             OX, OY = np.empty_like(X), np.empty_like(Y)
             kernel(X, Y, *args, OX, OY)
             X, Y = OX, OY
         if c != 6:
             X, Y = X[:, :c].copy(), Y[:, :c].copy()
-        return Jet(X), Jet(Y)
+        return Jet(X.reshape(shape + (c,))), Jet(Y.reshape(shape + (c,)))
 
 
 def _kernel_call(stage):
