@@ -593,6 +593,13 @@ def fit_squircle(points, *, views=None, free=None, config: PerceptionConfig | No
     return Fit(_to_squircle(x), rms, closed, np.arange(len(q)), p95)
 
 
+def _distances(sq: Squircle, q: np.ndarray) -> tuple[float, float]:
+    """RMS and 95th percentile of the distances of the points ``q`` to ``sq``'s boundary, to
+    first order (radial errors times :func:`_distance_weights`)."""
+    d = np.abs(radial_error(sq, q)) * _distance_weights(_params(sq), q)
+    return float(np.sqrt(np.mean(d * d))), _p95(d)
+
+
 def _check(a, name: str) -> np.ndarray:
     try:
         arr = np.asarray(a, dtype=float)
@@ -1359,9 +1366,20 @@ def _fit_one(q, vw, free, cfg: PerceptionConfig, init, cache: dict, split: bool)
         one = fit_squircle(q, views=vw, free=free, config=cfg, init=single)
         _record(cache, one.squircle, q)
     cache["one"] = (len(q), one.rms, one)
-    if not split or _explains(one, None if free is None else _check(free, "free"), cfg) or len(q) < 2 * cfg.min_piece:
+    if not split or len(q) < 2 * cfg.min_piece:
         return one
-    return None
+    test = one
+    if _FINAL_CHECK:
+        # the errors of the estimate returned, not only of the least-squares solution before
+        # completion and containment: scaled to hold every return, an ellipse over a rectangle
+        # and its rounded neighbour passed at 0.027 m where its returns lie 0.045 m (RMS) from
+        # it (random28 noisy, IoU 0.684)
+        rms, p95 = _distances(one.squircle, _subsample(q, _MAX_POINTS))
+        test = Fit(one.squircle, max(rms, one.rms), one.closed, one.indices, max(p95, one.p95))
+    return one if _explains(test, None if free is None else _check(free, "free"), cfg) else None
+
+
+_FINAL_CHECK = True
 
 
 def _explains(f: Fit, fr, cfg: PerceptionConfig, free: bool = True) -> bool:

@@ -359,3 +359,17 @@ def test_a_cycle_piece_is_dissolved_into_its_neighbours(monkeypatch):
                                                      ((1.7, 2.1), (3.0, 4.0)), 2)
     assert areas[1] <= 0.85 * areas[0], areas
     assert ious[1] > ious[0] + 0.1, ious  # 0.651 -> 0.840 (areas 0.460 -> 0.359 m^2)
+
+
+def test_one_squircle_is_judged_by_the_estimate_it_returns(monkeypatch):
+    """Returns and free cells of a rectangle and its rounded neighbour, recorded at the end of
+    `random28`'s noisy drive (tests/data/random28_pair.npz). The least-squares ellipse of the
+    whole cluster passed the single-squircle criterion (RMS 0.027 m against ``split_tol``
+    0.032 m), but completed and scaled to contain every return the estimate lies 0.045 m (RMS)
+    from them. Judged by the estimate it returns (``_FINAL_CHECK``), the cluster is decomposed:
+    two pieces, which form a tree, contain every return, leave the free space free and match
+    the two true obstacles better."""
+    areas, ious = _recorded_cluster_with_and_without(monkeypatch, "_FINAL_CHECK", "random28_pair", 28, 0.01,
+                                                     ((2.5, 3.0), (3.7, 4.1)), 2)
+    assert areas[1] <= 0.9 * areas[0], areas  # 0.156 -> 0.130 m^2
+    assert ious[1] > ious[0] + 0.1, ious  # 0.683 -> 0.862
