@@ -1120,8 +1120,8 @@ def _dissolve(q, vw, fr, fits: list[Fit], cyc, errs, cfg: PerceptionConfig, init
     decomposition's criterion, or the best merge's errors where they are larger: no worse than
     that merge) and keeping every free cell out (none deeper than ``free_tol``); of those, the
     one leaving the least total area. ``errs[a]`` holds the radial errors of piece ``a``'s
-    points in every other piece (in order; shape (others, points)). Returns ``(a, [(k, refit of piece k)])`` (indices into
-    ``fits`` before ``a`` is removed) or None."""
+    points in every other piece (in order; shape (others, points)). Returns
+    ``(a, [(k, refit of piece k)])`` (indices into ``fits`` before ``a`` is removed) or None."""
     best = None
     for a in cyc:
         others = [k for k in range(len(fits)) if k != a]
