@@ -921,9 +921,9 @@ def _break_cycles(q, vw, free, fits: list[Fit], cfg: PerceptionConfig, grow: flo
     the others instead if they, refitted with its returns, keep the free space free and explain
     them no worse (:func:`_dissolve`; errors up to the merge's, at most ``_DISSOLVE_SLACK``
     times the criterion: at 1.35 times, a dissolve of the X of two crossing walls in
-    ``random4`` gave a 0.39 x 1.0 m ellipse that blocked a region). A piece is dropped only into pieces that explain their
-    own returns and swallow no free space (:func:`_explains`): a thick piece over free space
-    is no cover (``random10`` noisy: two wall pieces dropped into a 0.92 x 0.41 m box holding
+    ``random4`` gave a 0.39 x 1.0 m ellipse that blocked a region). A piece is dropped only
+    into pieces that explain their own returns and hold fewer than 3 free cells deeper than
+    ``free_cell`` (:func:`_explains`): a thick piece over free space is no cover (``random10`` noisy: two wall pieces dropped into a 0.92 x 0.41 m box holding
     27 free cells)."""
     fits = list(fits)
     fr = None if free is None or not len(free) else np.asarray(free, dtype=float)
@@ -971,8 +971,8 @@ def _break_cycles(q, vw, free, fits: list[Fit], cfg: PerceptionConfig, grow: flo
                 if a < b and b in adj[a]:
                     idx = np.concatenate((fits[a].indices, fits[b].indices))
                     f = _fit_piece(q, vw, fr, idx, cfg, init, cache)
-                    explains = f.rms <= cfg.split_tol and f.p95 <= 3 * cfg.split_tol
-                    deep = 0 if fr is None else int(np.count_nonzero(radial_error(f.squircle, fr) < -cfg.free_tol))
+                    explains = _explains(f, fr, cfg, free=False)
+                    deep = _deep(f.squircle, fr, cfg)
                     c = (deep, not explains, _piece_cost(q[idx], fr, cfg.free_cell) / len(idx))
                     if best is None or c < best[0]:
                         best = (c, a, b, idx, f)
@@ -1056,9 +1056,9 @@ def _tighten_pass(q, vw, fr, fits: list[Fit], cfg: PerceptionConfig, grow: float
         if not covered.any() or len(keep) < cfg.min_piece:
             continue
         f = _fit_piece(q, vw, fr, keep, cfg, init, cache)
-        if f.rms > cfg.split_tol or f.p95 > 3 * cfg.split_tol or f.squircle.area > _TIGHTEN_AREA * g.squircle.area:
+        if not _explains(f, fr, cfg, free=False) or f.squircle.area > _TIGHTEN_AREA * g.squircle.area:
             continue
-        if fr is not None and len(fr) and int(np.count_nonzero(radial_error(f.squircle, fr) < -cfg.free_tol)):
+        if _deep(f.squircle, fr, cfg):
             continue
         if float(radial_error(g.squircle, f.squircle.boundary_points(64)).max()) > cfg.inside_tol:
             continue  # not within the old piece: it could overlap others once inflated
@@ -1071,6 +1071,13 @@ def _tighten_pass(q, vw, fr, fits: list[Fit], cfg: PerceptionConfig, grow: float
         for k in np.unique(owner):
             _hand_over(fits, int(k), g.indices[covered][owner == k])
     return fits, changed
+
+
+def _deep(sq: Squircle, fr, cfg: PerceptionConfig) -> int:
+    """The free cells of ``fr`` (None or empty: none) deeper than ``free_tol`` inside ``sq``."""
+    if fr is None or not len(fr):
+        return 0
+    return int(np.count_nonzero(radial_error(sq, fr) < -cfg.free_tol))
 
 
 def _hand_over(fits: list[Fit], k: int, idx: np.ndarray) -> None:
@@ -1097,9 +1104,7 @@ def _shrink(q, vw, fr, fits: list[Fit], cyc, adj, errs, cfg: PerceptionConfig, g
         if len(keep) < cfg.min_piece or len(keep) == len(idx):
             continue
         f = _fit_piece(q, vw, fr, keep, cfg, init, cache)
-        if f.rms > cfg.split_tol or f.p95 > 3 * cfg.split_tol:
-            continue
-        if fr is not None and int(np.count_nonzero(radial_error(f.squircle, fr) < -cfg.free_tol)):
+        if not _explains(f, fr, cfg, free=False) or _deep(f.squircle, fr, cfg):
             continue
         nb = [b for b in cyc if b != a and b in adj[a]]
         if all(_overlap(f.squircle, fits[b].squircle, grow) for b in nb):
@@ -1137,7 +1142,7 @@ def _dissolve(q, vw, fr, fits: list[Fit], cyc, errs, cfg: PerceptionConfig, init
             f = _fit_piece(q, vw, fr, idx, cfg, init, cache)
             if f.rms > rms_max or f.p95 > p95_max:
                 break
-            if fr is not None and len(fr) and int(np.count_nonzero(radial_error(f.squircle, fr) < -cfg.free_tol)):
+            if _deep(f.squircle, fr, cfg):
                 break
             refits.append((k, Fit(f.squircle, f.rms, f.closed, idx, f.p95)))
             area += f.squircle.area - fits[k].squircle.area
@@ -1365,7 +1370,8 @@ def _fit_one(q, vw, free, cfg: PerceptionConfig, init, cache: dict, split: bool)
     estimate, not from a piece), recorded in ``cache["one"]``; returned when it explains the
     cluster (or ``split`` is False), else None."""
     single = init if init and len(init) == 1 else None
-    one = _kept(single, q, vw, None if free is None else _check(free, "free"), cfg, cache.get("err"))
+    fr = None if free is None else _check(free, "free")
+    one = _kept(single, q, vw, fr, cfg, cache.get("err"))
     if one is None:
         one = fit_squircle(q, views=vw, free=free, config=cfg, init=single)
         _record(cache, one.squircle, q)
@@ -1380,7 +1386,7 @@ def _fit_one(q, vw, free, cfg: PerceptionConfig, init, cache: dict, split: bool)
         # it (random28 noisy, IoU 0.684)
         rms, p95 = _distances(one.squircle, _subsample(q, _MAX_POINTS))
         test = Fit(one.squircle, max(rms, one.rms), one.closed, one.indices, max(p95, one.p95))
-    return one if _explains(test, None if free is None else _check(free, "free"), cfg) else None
+    return one if _explains(test, fr, cfg) else None
 
 
 _FINAL_CHECK = True
@@ -1388,9 +1394,9 @@ _FINAL_CHECK = True
 
 def _explains(f: Fit, fr, cfg: PerceptionConfig, free: bool = True) -> bool:
     """One squircle explains its returns: RMS radial error within ``split_tol``, 95th
-    percentile within ``3 split_tol`` and (with ``free``) fewer than 3 free cells of ``fr``
-    deeper than ``free_cell`` inside it."""
-    if f.rms > cfg.split_tol or f.p95 > 3 * cfg.split_tol:
+    percentile within ``3 split_tol`` (a NaN error explains nothing) and (with ``free``) fewer
+    than 3 free cells of ``fr`` deeper than ``free_cell`` inside it."""
+    if not (f.rms <= cfg.split_tol and f.p95 <= 3 * cfg.split_tol):
         return False
     if not free or fr is None or not len(fr):
         return True

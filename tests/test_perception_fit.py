@@ -291,10 +291,11 @@ def test_cycles_of_a_zig_zag_chain_break_without_swallowing_free_space():
 
 def _union_iou(a, b, lo, hi, cell=0.005):
     """IoU of the unions of squircles ``a`` and ``b`` on a grid over the box ``lo``..``hi``."""
+    from perception.evaluation import _inside_any
+
     xs, ys = np.meshgrid(np.arange(lo[0], hi[0], cell), np.arange(lo[1], hi[1], cell))
     g = np.stack((xs.ravel(), ys.ravel()), axis=1)
-    ia = np.any([s.beta(g) <= 0 for s in a], axis=0)
-    ib = np.any([s.beta(g) <= 0 for s in b], axis=0)
+    ia, ib = _inside_any(a, g), _inside_any(b, g)
     return float(np.count_nonzero(ia & ib) / np.count_nonzero(ia | ib))
 
 
