@@ -130,7 +130,12 @@ Choices where the paper is vague, and why
   A passage the lidar has seen free (``perception.ObstacleMap.observed_free``) is taken on a
   smaller saving, ``seen_detour_ratio = 1.25`` on the trees' eq. 26 costs (docs/executive.md);
   a transition between regions keeps such a tree as a candidate, re-checked at every re-plan,
-  until its passage is seen.
+  until its passage is seen. *Hysteresis*: a re-plan on the way keeps a leg that came from the
+  fallback roadmap while that roadmap's tree is merely shorter or cheaper (both ratios 1;
+  the seen check still applies): the saving shrinks as the robot approaches the passage, and
+  on ``office`` the robot at ``d3`` turned back and forth between the passage and the way
+  round as the cost ratio crossed 1.25. Measured with ``python -m benchmarks.executive
+  --jitter 8 --jobs 2``: within 1.25 x the tour 92 -> 96 of 104 runs, total 897.7 -> 890.2 m.
 * **Known obstacles** (``known_obstacles`` in the world file, or all with ``known=True``) are
   used as given; lidar returns on them are dropped before perception (a NaN range: no return
   and no free-space evidence). When the known obstacles grown by the robot radius are not a
@@ -626,6 +631,11 @@ class Executive:
         self._unseen: dict[tuple[str, str], tuple] = {}
         self._align_until = -math.inf
         self._start_pair: dict[str, object] = {}
+        # the roadmap (index into ``_roads``) each start pair's tree came from, and the
+        # (region, roadmap) of the current leg: a re-plan keeps a leg on the fallback roadmap
+        # while that roadmap's tree is no dearer (``_tree``'s ``keep``)
+        self._start_road: dict[str, int] = {}
+        self._leg_road: tuple[str, int] | None = None
         self._commit: str | None = None  # the region a re-plan between regions is committed to
         self.events = sorted(world.events, key=lambda e: e.time)
         self._next_event = 0
@@ -1044,18 +1054,28 @@ class Executive:
             self._at_region = None
 
     # ------------------------------------------------------------------ planning
-    def _tree(self, start, goal, turned_down: list | None = None):
-        """Harmonic tree of one transition: on the first roadmap that has a path, unless the
-        fallback roadmap's tree is more than ``detour_ratio`` times shorter, or more than
-        ``seen_detour_ratio`` times cheaper (eq. 26) through a passage the lidar has seen free
-        (:meth:`_seen_passage`; one turned down for want of sight is appended to
-        ``turned_down``); see the module doc, "Buffer fallback". The last error when neither
-        roadmap has a path."""
-        err, best = None, None
+    def _tree(self, start, goal, turned_down: list | None = None, keep: int | None = None):
+        """Harmonic tree of one transition (see :meth:`_tree_road`)."""
+        return self._tree_road(start, goal, turned_down, keep)[0]
+
+    def _tree_road(self, start, goal, turned_down: list | None = None, keep: int | None = None):
+        """Harmonic tree of one transition and the index of its roadmap in ``_roads``: on the
+        first roadmap that has a path, unless the fallback roadmap's tree is more than
+        ``detour_ratio`` times shorter, or more than ``seen_detour_ratio`` times cheaper (eq. 26)
+        through a passage the lidar has seen free (:meth:`_seen_passage`; one turned down for
+        want of sight is appended to ``turned_down``); see the module doc, "Buffer fallback".
+        ``keep``: the roadmap the robot's current leg to ``goal`` came from; a fallback tree
+        of that roadmap is kept when it is merely no longer or no dearer (ratios 1: hysteresis,
+        module doc, "Buffer fallback"). The last error (and ``None``) when neither roadmap has
+        a path."""
+        err, best, best_k = None, None, None
         ratio, seen = self.config.detour_ratio, self.config.seen_detour_ratio
-        consider = min((r for r in (ratio, seen) if r > 0), default=0.0)
         direct = math.dist(start[:2], goal[:2])
-        for roads in self._roads:
+        for k, roads in enumerate(self._roads):
+            held = k == keep and k > 0
+            r_k = 1.0 if held and ratio > 0 else ratio
+            s_k = 1.0 if held and seen > 0 else seen
+            consider = min((r for r in (r_k, s_k) if r > 0), default=0.0)
             if best is not None and (consider <= 0 or not best.translations.sum() > consider * direct):
                 break  # no detours considered, or none can be ratio times shorter than the straight line
             try:
@@ -1068,14 +1088,22 @@ class Executive:
                         break
                 continue
             length = tree.translations.sum()
-            if best is None or (ratio > 0 and ratio * length < best.translations.sum()):
-                best = tree
-            elif seen > 0 and seen * tree.cost < best.cost:
+            if best is None or (r_k > 0 and r_k * length < best.translations.sum()):
+                best, best_k = tree, k
+            elif s_k > 0 and s_k * tree.cost < best.cost:
                 if self._seen_passage(tree):
-                    best = tree
+                    best, best_k = tree, k
                 elif turned_down is not None:
                     turned_down.append(tree)
-        return best if best is not None else err
+        return (best, best_k) if best is not None else (err, None)
+
+    def _leg_keep(self, region: str) -> int | None:
+        """The roadmap of the current leg when it leads to ``region`` and the robot is on its
+        way (not at a region: a new leg there starts afresh)."""
+        if (self._leg_road is None or self._leg_road[0] != region or self._at_region is not None
+                or self.state is not ExecutiveState.EXECUTING):
+            return None
+        return self._leg_road[1]
 
     def _seen_passage(self, tree) -> bool:
         """The stretch of ``tree``'s path closer than ``buffer`` to an obstacle or the boundary
@@ -1124,7 +1152,7 @@ class Executive:
                 return False
             c = self.world.regions[b].center
             goal = (c[0], c[1], math.atan2(c[1] - p[1], c[0] - p[0]))
-            res = self._tree(p, goal)
+            res, self._start_road[b] = self._tree_road(p, goal, keep=self._leg_keep(b))
             self._start_pair[b] = res
             if isinstance(res, NoTreePathError) and res.reason is TreeFailure.START_BLOCKED:
                 # the robot stands where no tree can start (an estimate grown over its
@@ -1245,9 +1273,10 @@ class Executive:
     def _set_leg(self, p, target) -> None:
         c = self.world.regions[target].center
         goal = (c[0], c[1], math.atan2(c[1] - p[1], c[0] - p[0]))
-        res = self._start_pair.get(target)
+        res, road = self._start_pair.get(target), self._start_road.get(target)
         if res is None or isinstance(res, Exception) or self._at_region is not None:
-            res = self._tree(p, goal)
+            res, road = self._tree_road(p, goal, keep=self._leg_keep(target))
+        self._leg_road = (target, road) if road is not None else None
         if isinstance(res, NoTreePathError) and res.reason is TreeFailure.START_BLOCKED:
             # the robot is in the buffer zone of an estimate that the terminal rule cannot
             # relieve: head for the region directly (the field keeps it safe)

@@ -23,6 +23,7 @@ from navigation.world import World
 from perception import ObstacleMap
 from service.sim import Simulator
 from tamp.executive import Executive, ExecutiveConfig, ExecutiveState
+from tamp.harmonic_tree import plan_tree
 from tamp.errors import LtlSyntaxError, TampError, UnknownRegionError
 from tamp.run import main, run_mission
 
@@ -308,6 +309,36 @@ def test_a_passage_counts_as_seen_only_once_the_lidar_crossed_it():
     assert ex._seen_passage(tree)
     ex.omap = ObstacleMap.from_world(world)  # the same roadmap, no free-space evidence
     assert not ex._seen_passage(tree)
+
+
+def test_a_leg_through_a_narrow_passage_is_kept_while_no_dearer():
+    """Hysteresis of the buffer fallback (``Executive._tree_road``'s ``keep``): once the leg
+    goes through the gap (fallback roadmap), a re-plan on the way keeps it while the gap is
+    merely no dearer than the way round, though no longer ``seen_detour_ratio`` times cheaper;
+    a robot not yet committed to it (no ``keep``) takes the way round. Office's robot turned
+    back and forth between two such ways at d3 as their cost ratio crossed 1.25."""
+    world = _seen_gap_world()
+    ex = Executive(world)
+    sim = Simulator(world, seed=0)
+    _drive(ex, sim, 12, stop=lambda ex: False)  # out of region a, on its way through the gap
+    assert ex.state is ExecutiveState.EXECUTING and ex._at_region is None
+    assert ex._leg_road == ("b", 1), ex._leg_road
+    p = tuple(sim.pose)
+    goal = (3.0, 1.7, math.atan2(1.7 - p[1], 3.0 - p[0]))
+    t0 = plan_tree(ex._roads[0].current(), p, goal, ex.weights, ex.config.n_headings)
+    t1 = plan_tree(ex._roads[1].current(), p, goal, ex.weights, ex.config.n_headings)
+    assert 1.0 < t0.cost / t1.cost and 1.0 < t0.translations.sum() / t1.translations.sum()
+    # ratios above the saving from here: only the hysteresis keeps the gap
+    ex.config = dataclasses.replace(ex.config, seen_detour_ratio=1.1 * t0.cost / t1.cost,
+                                    detour_ratio=1.1 * t0.translations.sum() / t1.translations.sum())
+    assert ex._tree_road(p, goal)[1] == 0
+    assert ex._tree_road(p, goal, keep=ex._leg_keep("b"))[1] == 1
+    ex._need_plan = True  # a re-plan on the way
+    _drive(ex, sim, 1, stop=lambda ex: False)
+    assert ex.replans >= 1 and ex._leg_road == ("b", 1), ex._leg_road
+    r = _drive(ex, sim, 400)
+    assert ex.state is ExecutiveState.DONE and not sim.metrics.collisions
+    assert sim.metrics.distance < 2.75, sim.metrics.distance  # through the gap, not round (> 2.8 m)
 
 
 def test_detour_ratio_is_validated():
