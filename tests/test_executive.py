@@ -336,7 +336,7 @@ def test_a_leg_through_a_narrow_passage_is_kept_while_no_dearer():
     ex._need_plan = True  # a re-plan on the way
     _drive(ex, sim, 1, stop=lambda ex: False)
     assert ex.replans >= 1 and ex._leg_road == ("b", 1), ex._leg_road
-    r = _drive(ex, sim, 400)
+    _drive(ex, sim, 400)
     assert ex.state is ExecutiveState.DONE and not sim.metrics.collisions
     assert sim.metrics.distance < 2.75, sim.metrics.distance  # through the gap, not round (> 2.8 m)
 
