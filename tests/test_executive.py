@@ -19,6 +19,7 @@ import sys
 import numpy as np
 import pytest
 
+from navigation.clearance import forest_clearance
 from navigation.world import World
 from perception import ObstacleMap
 from service.sim import Simulator
@@ -341,9 +342,39 @@ def test_a_leg_through_a_narrow_passage_is_kept_while_no_dearer():
     assert sim.metrics.distance < 2.75, sim.metrics.distance  # through the gap, not round (> 2.8 m)
 
 
+def test_leg_waypoints_in_a_narrow_passage_are_centred():
+    """``ExecutiveConfig.centre_reach``: the fallback tree through the 0.4 m gap turns at
+    vertices 3 cm off the grown wall ends; the leg's waypoint in the gap is moved to its middle
+    (y = 1.8, clearance 0.1 at most for a robot of radius 0.1), farther from both walls than
+    the tree's vertex, waypoints with clearance ``buffer`` stay where they are, and every
+    segment of the leg stays clear at the fallback buffer."""
+    legs = {}
+    for reach in (0.0, 0.12):
+        world = _gap_world()
+        ex = Executive(world, config=ExecutiveConfig(centre_reach=reach))
+        sim = Simulator(world, seed=0)
+        ex.tick(sim.pose_message(), scan=sim.scan_message(), now=sim.time)
+        assert ex._leg_road == ("b", 1)
+        legs[reach] = W = np.array([w[:2] for w in ex.leg])
+        rm = ex._roads[-1].current()
+        assert rm.visible(W[:-1], W[1:]).all()
+        clear = forest_clearance(ex.forest)
+        legs[reach, "c"] = clear(W)
+    (W0, c0), (W1, c1) = (legs[0.0], legs[0.0, "c"]), (legs[0.12], legs[0.12, "c"])
+    assert len(W0) == len(W1)
+    gap = np.nonzero(np.abs(W1[:, 0] - 2.0) < 0.1)[0]
+    assert len(gap) == 1 and abs(W1[gap[0], 1] - 1.8) < 0.015, W1
+    assert c1[gap[0]] > c0[gap[0]] + 0.005 and c1.min() > c0.min()
+    wide = c0 >= ExecutiveConfig().buffer
+    assert np.array_equal(W0[wide], W1[wide])
+    assert np.all(c1 >= c0 - 1e-9)
+
+
 def test_detour_ratio_is_validated():
     with pytest.raises(TampError, match="detour_ratio"):
         ExecutiveConfig(detour_ratio=-1.0)
+    with pytest.raises(TampError, match="centre_reach"):
+        ExecutiveConfig(centre_reach=float("nan"))
     with pytest.raises(TampError, match="seen_detour_ratio"):
         ExecutiveConfig(seen_detour_ratio=0.5)
     with pytest.raises(TampError, match="seen_share"):
