@@ -78,6 +78,7 @@ _REPAIR_STEPS = 16
 _GROW_STEP = 0.03
 _REFIT_EVERY = 5  # scans between non-urgent refits of one cluster
 _REFIT_LATEST = 20  # scans after which a pending (non-urgent) refit runs even on a quiet scan
+_MERGES_PER_UPDATE = 2  # cycle merges one estimate may take part in within one update
 _MAX_BACKOFF = 2  # futile free-space refits double the wait, at most 2 ** _MAX_BACKOFF times
 
 
@@ -1381,7 +1382,15 @@ class ObstacleMap:
                     pts = np.concatenate((_samples(ea.squircle), _samples(eb.squircle)))
                     cands.append((other, rect_error(pts), ids[x], ids[y]))
             for _, _, a, b in sorted(cands):
+                # an estimate merged ``_MERGES_PER_UPDATE`` times in one update is growing by
+                # merges (office, jittered start: trimmed clear of the robot disc, the returns
+                # the trim left out fitted again, merged again, seven times, into a 5.6 m
+                # squircle over space seen free that walled d3 off): no more; unrepaired, the
+                # update is reverted
+                if max(self._attempts.get(("merge", a), 0), self._attempts.get(("merge", b), 0)) >= _MERGES_PER_UPDATE:
+                    continue
                 if self._merge(proposed, a, b, changed, removed):
+                    self._attempts[("merge", a)] = self._attempts.get(("merge", a), 0) + 1
                     notes.append(f"merged estimates {a} and {b} (cycle)")
                     # the cover of the pair may hold free space its pieces kept free: the
                     # cluster is refitted once due (pending), not left as merged

@@ -219,6 +219,59 @@ def test_robot_near_an_inflated_corner_is_cleared():
     assert 0 in changed and proposed[0].inflated.beta(p) > 0, notes
 
 
+def test_an_estimate_growing_by_repeated_cycle_merges_is_reverted(monkeypatch):
+    """A repair that merges one estimate again and again within one update (office, jittered
+    start: trimmed clear of the robot disc, the returns left out fitted again, the new piece
+    closing a cycle with it, merged, seven times, into a 5.6 m squircle over space seen free
+    that walled a region off) stops after ``_MERGES_PER_UPDATE`` merges: the update is
+    reverted and the previous map kept. Simulated here: every robot-disc clearance adds a
+    piece overlapping estimate 0, and the forest check reports a cycle until the fifth merge."""
+    from navigation.geometry import Squircle
+
+    from perception import map as pmap
+    from perception.fit import inflate
+    from perception.map import Estimate
+
+    omap = ObstacleMap.from_world(shared_world("office"))
+    r = omap.radius
+
+    def est(i, x):
+        sq = Squircle((x, 3.0), 0.6, 0.15, 0.0, 0.99)
+        return Estimate(i, sq, inflate(sq, r), 0)
+
+    merges = []
+    state = {"next": 2}
+
+    def clear_robot(pose, proposed, changed, removed, notes, only=None, recover=True):
+        if not recover or 0 not in proposed:
+            return
+        i = state["next"]
+        state["next"] += 1
+        proposed[i] = est(i, max(e.squircle.center[0] + e.squircle.width / 2 for e in proposed.values()) - 0.1)
+        changed.add(i)
+
+    def validate(proposed, seeds):
+        sub = sorted(proposed)
+        if len(merges) < 5:
+            return navigation.ForestError("cycle", obstacles=(sub.index(0), len(sub) - 1), rule="cycle"), sub
+        return None, sub
+
+    real_merge = omap._merge
+
+    def merge(proposed, a, b, changed, removed):
+        merges.append((a, b))
+        return real_merge(proposed, a, b, changed, removed)
+
+    monkeypatch.setattr(omap, "_clear_robot", clear_robot)
+    monkeypatch.setattr(omap, "_validate", validate)
+    monkeypatch.setattr(omap, "_merge", merge)
+    proposed, notes = {0: est(0, 1.0), 1: est(1, 1.5)}, []
+    added, updated, gone = omap._commit(0.0, proposed, {0, 1}, set(), notes, (0.5, 0.5, 0.0))
+    assert len(merges) == pmap._MERGES_PER_UPDATE and all(a == 0 for a, _ in merges), merges
+    assert any(n.startswith("reverted estimates") for n in notes), notes
+    assert (added, updated, gone) == ((), (), ()) and not omap.obstacles()
+
+
 def _cert_map():
     """An office map and a helper making estimates from inflated squircles."""
     from perception.map import Estimate
