@@ -23,7 +23,7 @@ from navigation.clearance import forest_clearance
 from navigation.world import World
 from perception import ObstacleMap
 from service.sim import Simulator
-from tamp.executive import Executive, ExecutiveConfig, ExecutiveState
+from tamp.executive import Executive, ExecutiveConfig, ExecutiveState, reachable_speed
 from tamp.harmonic_tree import plan_tree
 from tamp.errors import LtlSyntaxError, TampError, UnknownRegionError
 from tamp.run import main, run_mission
@@ -368,6 +368,37 @@ def test_leg_waypoints_in_a_narrow_passage_are_centred():
     wide = c0 >= ExecutiveConfig().buffer
     assert np.array_equal(W0[wide], W1[wide])
     assert np.all(c1 >= c0 - 1e-9)
+
+
+def test_reachable_speed_is_the_speed_of_the_circle_through_the_waypoint():
+    """``reachable_speed``: ``omega_max d / (2 sin a)``; a point abeam at 0.3 m is reached on
+    a half circle of radius 0.15 m; straight ahead there is no cap; behind the robot the cap is
+    the abeam one (``a`` capped at 90 degrees)."""
+    assert reachable_speed((0.0, 0.0, 0.0), (0.0, 0.3), 1.5) == pytest.approx(0.225)
+    assert reachable_speed((1.0, 1.0, math.pi / 2), (1.5, 1.0 + math.sqrt(3) / 2), 1.5) == pytest.approx(1.5)
+    assert reachable_speed((0.0, 0.0, 0.3), (2.0 * math.cos(0.3), 2.0 * math.sin(0.3)), 1.5) == math.inf
+    assert reachable_speed((0.0, 0.0, 0.0), (-0.3, 0.0001), 1.5) == pytest.approx(0.225, rel=1e-3)
+
+
+@pytest.mark.parametrize("cap", [True, False])
+def test_the_executive_never_drives_faster_than_it_can_turn_onto_its_waypoint(cap):
+    """``ExecutiveConfig.turn_cap``: on the way through the gap every command's speed is at
+    most ``reachable_speed`` of the waypoint tracked (the motion guard and the safety limit
+    only lower it further); without it the robot drives faster somewhere. Both arrive."""
+    world = _seen_gap_world()
+    ex = Executive(world, config=ExecutiveConfig(turn_cap=cap))
+    sim = Simulator(world, seed=0)
+    over = 0
+    for _ in range(400):
+        pose = tuple(sim.pose)
+        res = ex.tick(sim.pose_message(), scan=sim.scan_message(), now=sim.time)
+        if ex.state is ExecutiveState.DONE:
+            break
+        if ex.leg and res.v > reachable_speed(pose, ex.leg[ex.wp], ex.control.omega_max) + 1e-9:
+            over += 1
+        sim.step((res.v, res.omega))
+    assert ex.state is ExecutiveState.DONE and not sim.metrics.collisions
+    assert (over == 0) if cap else (over > 0), over
 
 
 def test_detour_ratio_is_validated():
