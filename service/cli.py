@@ -192,6 +192,9 @@ def _repo_root() -> str:
     return str(Path(__file__).resolve().parent.parent)
 
 
+SIM_START = 60.0  # s the demo waits for its simulator's first pose before the node runs
+
+
 def _cmd_demo(a) -> int:
     import numpy as np
 
@@ -237,10 +240,23 @@ def _cmd_demo(a) -> int:
 
     with node:
         sub = node.session.declare_subscriber(cfg.key("sim/metrics"), lambda s: metrics.append(s.payload.to_bytes()))
+        # the node's watchdog counts from the node's start: wait (up to SIM_START s) for the
+        # simulator process's first pose and scan and restart it then, so that the simulator's
+        # start-up (imports, session) does not show as a watchdog stop ("blocked: no fresh
+        # pose") at the start of every demo
+        up = {"pose": threading.Event(), "scan": threading.Event()}
+        first = [node.session.declare_subscriber(cfg.key(k), lambda s, e=e: e.set()) for k, e in up.items()]
         sim = subprocess.Popen(sim_cmd, env=env, stdout=subprocess.DEVNULL)
         try:
             print(f"tamp-service demo: {world.name}, task {brain.summary()['task']!r}, speed x{a.speed:g}, "
                   f"bus {listen[0]} prefix {cfg.key_prefix}", file=sys.stderr, flush=True)
+            t_up = time.monotonic() + SIM_START
+            while (not all(e.wait(0.05) for e in up.values()) and sim.poll() is None
+                   and time.monotonic() < t_up and not stopped.is_set()):
+                pass
+            for f in first:
+                f.undeclare()
+            node.restart_watchdog()
             node.run(a.duration + 30.0, until=progress)  # paced: real time at worst
             time.sleep(min(0.5, 2.0 / a.speed))  # let the simulator's last metrics arrive
         finally:

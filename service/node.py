@@ -477,6 +477,12 @@ class ServiceNode:
     def _pose_at(self, stamp: float) -> PoseMsg | None:
         return min(self._poses, key=lambda p: abs(p.stamp - stamp), default=None)
 
+    def restart_watchdog(self) -> None:
+        """Count the watchdog's "none received yet" time from now instead of from :meth:`open`
+        (a caller that started its inputs' source after opening the node, e.g. the demo's
+        simulator process)."""
+        self._t0 = time.monotonic()
+
     def _watchdog(self, mono: float) -> str | None:
         wd = self.config.watchdog
         for name, what in (("pose", "pose"), ("sensor", "scan or points")):

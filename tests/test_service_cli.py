@@ -107,6 +107,9 @@ def test_demo_mission_of_simple_completes_over_the_bus_with_a_recording(tmp_path
     assert summary["completed"] is True, (summary, err)
     assert summary["collisions"] == 0
     assert summary["visited"][:2] in (["a", "b"], ["b", "a"])
+    # the demo waits for its simulator's first pose and scan: no watchdog stop at the start
+    states = [line.split("] ", 1)[1].split()[0] for line in err.splitlines() if line.startswith("[") and "] " in line]
+    assert states and "blocked" not in states, err
     # the recording verifies and holds the expected entities
     rerun = Path(sys.executable).parent / "rerun"
     verify = subprocess.run([str(rerun) if rerun.exists() else "rerun", "rrd", "verify", str(rrd)],
