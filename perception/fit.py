@@ -1073,11 +1073,12 @@ def _tighten_pass(q, vw, fr, fits: list[Fit], cfg: PerceptionConfig, grow: float
     return fits, changed
 
 
-def _deep(sq: Squircle, fr, cfg: PerceptionConfig) -> int:
-    """The free cells of ``fr`` (None or empty: none) deeper than ``free_tol`` inside ``sq``."""
+def _deep(sq: Squircle, fr, cfg: PerceptionConfig, depth: float | None = None) -> int:
+    """The free cells of ``fr`` (None or empty: none) deeper than ``depth`` (default
+    ``free_tol``) inside ``sq``."""
     if fr is None or not len(fr):
         return 0
-    return int(np.count_nonzero(radial_error(sq, fr) < -cfg.free_tol))
+    return int(np.count_nonzero(radial_error(sq, fr) < -(cfg.free_tol if depth is None else depth)))
 
 
 def _hand_over(fits: list[Fit], k: int, idx: np.ndarray) -> None:
@@ -1398,9 +1399,7 @@ def _explains(f: Fit, fr, cfg: PerceptionConfig, free: bool = True) -> bool:
     than 3 free cells of ``fr`` deeper than ``free_cell`` inside it."""
     if not (f.rms <= cfg.split_tol and f.p95 <= 3 * cfg.split_tol):
         return False
-    if not free or fr is None or not len(fr):
-        return True
-    return int(np.count_nonzero(radial_error(f.squircle, fr) < -cfg.free_cell)) < 3
+    return not free or _deep(f.squircle, fr, cfg, cfg.free_cell) < 3
 
 
 def inflate(sq: Squircle, r: float, samples: int = 96) -> Squircle:

@@ -192,7 +192,7 @@ def _repo_root() -> str:
     return str(Path(__file__).resolve().parent.parent)
 
 
-SIM_START = 60.0  # s the demo waits for its simulator's first pose before the node runs
+SIM_START = 60.0  # s the demo waits for its simulator's first pose and scan before the node runs
 
 
 def _cmd_demo(a) -> int:
