@@ -15,6 +15,11 @@ and 1) and a reduced timing sweep: the CI smoke test.
 Methods (:mod:`benchmarks.methods`): ``HT``, ``OHPF``, ``NF``, ``RRT*`` (skipped, with the
 reason in the report, when OMPL's Python bindings do not work) and ``oracle``.
 
+Every method's run on every scenario is a process of its own, forked from the prepared parent
+(:func:`benchmarks._common.isolated_map`): no run is timed with the memos (forest results, LTL
+translation) that another method's run on the same scenario filled. ``--jobs N`` runs N at a
+time.
+
 Metrics per method and scenario: completed, collisions, planning time (initial and total, wall
 s), execution time (simulated s), travel distance and its ratio to the oracle, replans,
 oscillation (sign changes of the commanded turn rate per metre, ``tamp.run``), chatter
@@ -36,14 +41,14 @@ import re
 import sys
 import time
 from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-from benchmarks._common import log, machine_info, write_results
+from benchmarks._common import isolated_map, log, machine_info, write_results
 from benchmarks.methods import ADAPTATION, METHODS, ompl_status, oracle_tour, run_method
+from tamp.run import prepare
 
 __all__ = ["main", "run", "scenario", "render_markdown", "chatter_table", "CHATTER_FLAG", "SHARED"]
 
@@ -69,27 +74,33 @@ def scenario(name: str, quick: bool = False):
     return navigation.load_world(name), None
 
 
-def _run_scenario(args) -> dict:
-    """All methods on one scenario (one worker process); the oracle last (it needs HT's order
-    when the mission is not visit-all)."""
-    name, methods, quick, max_time = args
+def _run_one(args) -> dict:
+    """One method on one scenario (in a child process of its own, :func:`benchmarks._common.isolated_map`)."""
+    name, m, quick, max_time = args
+    world, task = scenario(name, quick)
+    t0 = time.perf_counter()
+    try:
+        r = run_method(m, world, task, max_time=max_time)
+    except Exception as err:  # noqa: BLE001 - a crashing baseline is a result, not the end of the suite
+        r = {"error": f"{type(err).__name__}: {err}", "completed": False}
+    r["wall"] = time.perf_counter() - t0
+    return r
+
+
+def _log_run(args, r: dict) -> None:
+    name, m = args[:2]
+    log(f"[eval] {name} {m}: " + (f"error {r['error']}" if "error" in r else
+                                  f"completed={r['completed']} collisions={r['collisions']} "
+                                  f"distance={r['distance']:.2f} planning={r['planning_time']:.2f} s "
+                                  f"chatter={r['chatter']:.2f}/m (wall {r['wall']:.0f} s)"))
+
+
+def _scenario_result(name: str, methods: Sequence[str], quick: bool, runs: dict) -> dict:
+    """A scenario's runs (method -> result) with the oracle's tour added (it needs HT's order
+    when the mission is not visit-all) and every run's ratio to it."""
     world, task = scenario(name, quick)
     out = {"scenario": name, "world": world.name, "task": task or world.task, "n_obstacles": len(world.obstacles),
-           "runs": {}}
-    for m in methods:
-        if m == "oracle":
-            continue
-        t0 = time.perf_counter()
-        try:
-            r = run_method(m, world, task, max_time=max_time)
-        except Exception as err:  # noqa: BLE001 - a crashing baseline is a result, not the end of the suite
-            r = {"error": f"{type(err).__name__}: {err}", "completed": False}
-        r["wall"] = time.perf_counter() - t0
-        out["runs"][m] = r
-        log(f"[eval] {name} {m}: " + (f"error {r['error']}" if "error" in r else
-                                      f"completed={r['completed']} collisions={r['collisions']} "
-                                      f"distance={r['distance']:.2f} planning={r['planning_time']:.2f} s "
-                                      f"chatter={r['chatter']:.2f}/m (wall {r['wall']:.0f} s)"))
+           "runs": {m: runs[m] for m in methods if m in runs}}
     if "oracle" in methods:
         visit_all = bool(_VISIT_ALL.match(out["task"])) and not world.events
         ref = out["runs"].get("HT", {}).get("visited") or list(world.regions)
@@ -213,13 +224,14 @@ def run(names: Sequence[str], methods: Sequence[str], *, quick: bool = False, jo
         methods.remove("RRT*")
         skipped["RRT*"] = ompl[1]
         log(f"[eval] RRT* skipped: {ompl[1]}")
-    tasks = [(n, methods, quick, max_time) for n in names]
+    tasks = [(n, m, quick, max_time) for n in names for m in methods if m != "oracle"]
     t0 = time.perf_counter()
-    if jobs > 1:
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
-            scenarios = list(pool.map(_run_scenario, tasks))
-    else:
-        scenarios = [_run_scenario(t) for t in tasks]
+    prepare()  # kernels compiled once here; every run is forked from this state (isolated_map)
+    results = isolated_map(_run_one, tasks, jobs, _log_run)
+    runs: dict[str, dict] = {n: {} for n in names}
+    for (n, m, _, _), r in zip(tasks, results):
+        runs[n][m] = r
+    scenarios = [_scenario_result(n, methods, quick, runs[n]) for n in names]
     result = {"command": None, "quick": quick, "methods": methods, "skipped": skipped, "ompl": ompl[1], "max_time": max_time,
               "chatter_flag": CHATTER_FLAG, "scenarios": scenarios, "wall": time.perf_counter() - t0,
               "machine": machine_info()}
@@ -411,7 +423,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--random", type=int, default=20, help="random forest worlds (seeds 0 .. N-1)")
     parser.add_argument("--shared", nargs="*", default=list(SHARED), help="shared worlds to run")
     parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=list(METHODS), help="methods to run")
-    parser.add_argument("--jobs", type=int, default=1, help="scenarios run in parallel (processes)")
+    parser.add_argument("--jobs", type=int, default=1, help="runs (one method on one scenario, a process each) at a time")
     parser.add_argument("--max-time", type=float, default=300.0, help="simulated seconds per mission")
     parser.add_argument("--no-timing", action="store_true", help="skip the potential-construction timing sweep")
     parser.add_argument("--out", type=Path, default=None,

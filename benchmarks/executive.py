@@ -33,7 +33,9 @@ overrides an ``ExecutiveConfig`` field for every run, to compare settings on the
 (``controller`` takes a JSON object of ``navigation.ControllerConfig`` fields changed from the
 executive's default controller, e.g. ``--set 'controller={"accel_max": 1.0}'``, or ``null``);
 ``--jobs N`` runs the jittered missions in N processes (the main table stays sequential: its
-tick times are measured one mission at a time).
+tick times are measured one mission at a time). Every mission runs in a process of its own,
+forked from the prepared benchmark process (:func:`benchmarks._common.isolated_map`), so none
+is timed with the memos (forest results, LTL translation) that the missions before it filled.
 
 Results: ``<out>/executive.json`` and ``<out>/executive.md`` (also printed); progress on stderr.
 """
@@ -46,13 +48,12 @@ import json
 import math
 import time
 from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
 
 import navigation
-from benchmarks._common import log, machine_info, write_results
+from benchmarks._common import isolated_map, log, machine_info, write_results
 from tamp.harmonic_tree import NoTreePathError, RotationWeights, plan_tree
 from tamp.roadmap import Roadmap, RoadmapConfig
 from tamp.executive import ExecutiveConfig
@@ -137,42 +138,51 @@ def run_jitter(names: Sequence[str], runs: int, max_time: float = 300.0, config:
                jobs: int = 1) -> list[dict]:
     """``runs`` missions per world from jittered start poses (module doc)."""
     todo = [(name, k, max_time, config) for name in names for k in range(1, runs + 1)]
-    if jobs > 1:
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
-            out = list(pool.map(_jitter_run, todo))
-    else:
-        out = [_jitter_run(j) for j in todo]
-    for r in out:
-        log(f"[bench] {r['world']} jitter {r['k']}: completed={r['completed']} collisions={r['collisions']} "
-            f"distance={r['distance']:.2f} ratio={'-' if r['ratio'] is None else round(r['ratio'], 3)}")
-    return out
+    prepare()
+    return isolated_map(_jitter_run, todo, jobs, _log_jitter)
+
+
+def _log_jitter(_job, r: dict) -> None:
+    log(f"[bench] {r['world']} jitter {r['k']}: completed={r['completed']} collisions={r['collisions']} "
+        f"distance={r['distance']:.2f} ratio={'-' if r['ratio'] is None else round(r['ratio'], 3)}")
+
+
+def _nominal_run(job) -> dict:
+    """One world's mission from its own start pose: the table's row."""
+    name, max_time, config = job
+    world, task = _world(name)
+    t0 = time.perf_counter()
+    r = run_mission(world, task, max_time=max_time, config=config)
+    wall = time.perf_counter() - t0
+    tour, ratio = _tour_ratio(world, r)
+    row = {"world": name, **{k: r[k] for k in (
+        "completed", "collisions", "distance", "execution_time", "planning_time", "initial_planning_time",
+        "max_replan_time", "replan_p95", "replans", "tick_median", "tick_p95", "tick_max", "tick_cpu_median",
+        "tick_cpu_p95", "replan_cpu_p95", "max_replan_cpu", "oscillation",
+        "bad_commands", "visited", "state", "message", "map_changes", "trees_planned", "guard_stops")},
+           "tour": tour, "ratio": ratio, "wall": wall}
+    row["pass"] = {"distance": ratio is not None and ratio <= TARGETS["distance_ratio"],
+                   "synthesis": r["initial_planning_time"] <= TARGETS["synthesis"],
+                   "tick": r["tick_p95"] <= TARGETS["tick_p95"],
+                   "replan": r["max_replan_time"] <= TARGETS["replan"],
+                   "tick_cpu": r["tick_cpu_p95"] <= TARGETS["tick_p95"],
+                   "replan_cpu": r["max_replan_cpu"] <= TARGETS["replan"]}
+    return row
+
+
+def _log_row(_job, r: dict) -> None:
+    log(f"[bench] {r['world']}: completed={r['completed']} collisions={r['collisions']} distance={r['distance']:.2f} "
+        f"tour={r['tour'] if r['tour'] is None else round(r['tour'], 2)} tick p95={r['tick_p95'] * 1e3:.1f} ms "
+        f"(CPU {r['tick_cpu_p95'] * 1e3:.1f}) replan max={r['max_replan_time'] * 1e3:.0f} ms "
+        f"(CPU {r['max_replan_cpu'] * 1e3:.0f}) (wall {r['wall']:.0f} s)")
 
 
 def run(names: Sequence[str], max_time: float = 300.0, config: ExecutiveConfig | None = None) -> dict:
-    rows = []
-    for name in names:
-        world, task = _world(name)
-        t0 = time.perf_counter()
-        r = run_mission(world, task, max_time=max_time, config=config)
-        wall = time.perf_counter() - t0
-        tour, ratio = _tour_ratio(world, r)
-        row = {"world": name, **{k: r[k] for k in (
-            "completed", "collisions", "distance", "execution_time", "planning_time", "initial_planning_time",
-            "max_replan_time", "replan_p95", "replans", "tick_median", "tick_p95", "tick_max", "tick_cpu_median",
-            "tick_cpu_p95", "replan_cpu_p95", "max_replan_cpu", "oscillation",
-            "bad_commands", "visited", "state", "message", "map_changes", "trees_planned", "guard_stops")},
-               "tour": tour, "ratio": ratio, "wall": wall}
-        row["pass"] = {"distance": ratio is not None and ratio <= TARGETS["distance_ratio"],
-                       "synthesis": r["initial_planning_time"] <= TARGETS["synthesis"],
-                       "tick": r["tick_p95"] <= TARGETS["tick_p95"],
-                       "replan": r["max_replan_time"] <= TARGETS["replan"],
-                       "tick_cpu": r["tick_cpu_p95"] <= TARGETS["tick_p95"],
-                       "replan_cpu": r["max_replan_cpu"] <= TARGETS["replan"]}
-        log(f"[bench] {name}: completed={r['completed']} collisions={r['collisions']} distance={r['distance']:.2f} "
-            f"tour={tour if tour is None else round(tour, 2)} tick p95={r['tick_p95'] * 1e3:.1f} ms "
-            f"(CPU {r['tick_cpu_p95'] * 1e3:.1f}) replan max={r['max_replan_time'] * 1e3:.0f} ms "
-            f"(CPU {r['max_replan_cpu'] * 1e3:.0f}) (wall {wall:.0f} s)")
-        rows.append(row)
+    """The nominal missions, one at a time (timed), each in a process of its own forked from
+    this prepared one (:func:`benchmarks._common.isolated_map`): no mission is timed with the
+    memos of the missions before it."""
+    prepare()
+    rows = isolated_map(_nominal_run, [(name, max_time, config) for name in names], 1, _log_row)
     return {"machine": machine_info(), "targets": TARGETS, "rows": rows}
 
 
@@ -278,7 +288,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except Exception as err:  # the config's own validation (TampError): one line, exit 2
         raise SystemExit(f"python -m benchmarks.executive: {err}") from None
     names = ["simple"] if args.quick else list(SHARED) + [f"random{s}" for s in range(args.random)]
-    prepare()  # as tamp-service and python -m tamp.run do at start-up: kernels compiled, heap frozen
+    prepare()  # as tamp-service and python -m tamp.run do at start-up: kernels compiled, heap frozen (runs fork from here)
     result = run(names, args.max_time, config)
     if over:  # JSON-ready: the controller's settings in full
         result["config"] = {k: dataclasses.asdict(v) if dataclasses.is_dataclass(v) else v for k, v in over.items()}
