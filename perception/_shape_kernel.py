@@ -30,7 +30,11 @@ as the numpy code it mirrors, so its results are bit-identical (tested in
 * :func:`distance_weights`: :func:`perception.fit._distance_weights`;
 * :func:`accumulate`: ``np.add.at`` of a scan's returns into the map's cell sums (in order);
 * :func:`free_cells`: the cells a scan's beams cross (``ObstacleMap._mark_free``: the same
-  products, sums, divisions and floors per sample; the cosines and sines are numpy's).
+  products, sums, divisions and floors per sample; the cosines and sines are numpy's);
+* :func:`near_mask`: ``np.isfinite(cKDTree(q).query(f, distance_upper_bound=r)[0])`` of
+  :func:`perception.fit._near_free` (the k-d tree keeps a point when ``dx * dx + dy * dy < r *
+  r``; here the points sorted by ``x``, only those within ``r`` in ``x`` tested, stopping at the
+  first hit).
 """
 
 from __future__ import annotations
@@ -44,7 +48,7 @@ from navigation._geom_kernel import _arr, arc_inverse, points_into
 
 __all__ = ["boundary_points", "gauge_any_inside", "clear_of", "spacing", "gauge", "radial_error", "rect_test",
            "contain", "component_labels",
-           "distance_weights", "warm_up"]
+           "distance_weights", "near_mask", "warm_up"]
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -452,6 +456,35 @@ def free_cells(a0: float, a1: float, t: np.ndarray, L: np.ndarray, c: np.ndarray
 
 
 @numba.njit(**_JIT)
+def _near_kernel(xs, ys, f, r, out):
+    r2 = r * r
+    pad = r + 1e-9 * (1.0 + abs(r))  # (a superset of the window: |dx| >= r gives dx * dx >= r * r)
+    n = len(xs)
+    for i in range(len(f)):
+        fx, fy = f[i, 0], f[i, 1]
+        j = np.searchsorted(xs, fx - pad - 1e-9 * abs(fx))
+        hit = False
+        while j < n and xs[j] <= fx + pad + 1e-9 * abs(fx):
+            dx = fx - xs[j]
+            dy = fy - ys[j]
+            if dx * dx + dy * dy < r2:
+                hit = True
+                break
+            j += 1
+        out[i] = hit
+
+
+def near_mask(q: np.ndarray, f: np.ndarray, r: float) -> np.ndarray:
+    """Which rows of ``f (M, 2)`` lie closer than ``r`` to a row of ``q (N, 2)``:
+    ``np.isfinite(cKDTree(q).query(f, distance_upper_bound=r)[0])`` (the same squared distances
+    compared with ``r * r``, strictly)."""
+    order = np.argsort(q[:, 0], kind="stable")
+    out = np.empty(len(f), dtype=np.bool_)
+    _near_kernel(_arr(q[order, 0]), _arr(q[order, 1]), _arr(f), float(r), out)
+    return out
+
+
+@numba.njit(**_JIT)
 def _accumulate_kernel(n, total, view, ij, pts, vd, sel):
     for k in range(len(ij)):
         if sel[k]:
@@ -488,3 +521,4 @@ def warm_up() -> None:
     component_labels(4, np.array([[0, 2], [1, 3]]))
     component_labels(3, np.zeros((0, 2), np.int64))
     distance_weights(np.array([0.0, 0.0, -0.5, -1.0, 0.3, 0.9]), p)
+    near_mask(p, 0.5 * p, 0.1)

@@ -57,7 +57,6 @@ from typing import NamedTuple
 import cv2
 import numpy as np
 from scipy.optimize import least_squares
-from scipy.spatial import cKDTree
 
 from navigation._geom_kernel import _arr
 from navigation.geometry import Squircle
@@ -316,13 +315,16 @@ def _near_free(free: np.ndarray, q: np.ndarray, cfg: PerceptionConfig) -> np.nda
     left most of the ones near a long wall out of the fit (its estimates kept covering free
     space, and the free space kept triggering refits)."""
     if len(free) > _MAX_FREE:
-        d, _ = cKDTree(q).query(free, distance_upper_bound=cfg.min_unseen + cfg.free_cell)
-        free = free[np.isfinite(d)]
+        # compiled (:func:`perception._shape_kernel.near_mask`): the free points the k-d tree
+        # query ``cKDTree(q).query(free, distance_upper_bound=...)`` finds (the same selection)
+        free = free[_shape_kernel.near_mask(q, free, cfg.min_unseen + cfg.free_cell)]
     return _subsample(free, _MAX_FREE)
 
 
-def _seeds(points: np.ndarray, views: np.ndarray | None, cfg: PerceptionConfig) -> list[np.ndarray]:
-    """Initial parameter vectors from ``minAreaRect`` and ``fitEllipse`` (OpenCV)."""
+def _seeds(points: np.ndarray, views: np.ndarray | None, cfg: PerceptionConfig,
+           ellipse: bool = True) -> list[np.ndarray]:
+    """Initial parameter vectors from ``minAreaRect`` and ``fitEllipse`` (OpenCV; not with
+    ``ellipse`` False: the rectangle's only)."""
     P = points.astype(np.float32)
     (cx, cy), (w, h), ang = cv2.minAreaRect(P)
     t = math.radians(ang)
@@ -340,7 +342,7 @@ def _seeds(points: np.ndarray, views: np.ndarray | None, cfg: PerceptionConfig) 
             c = c + ay * math.copysign(cfg.min_unseen / 2 - hh, float(vbar @ ay) or 1.0)
             hh = cfg.min_unseen / 2
     seeds = [np.array([c[0], c[1], math.log(hw), math.log(hh), t, 0.9])]
-    if len(P) >= 5:
+    if ellipse and len(P) >= 5:
         try:
             (ex, ey), (ea, eb), eang = cv2.fitEllipse(P)
         except cv2.error:  # degenerate (collinear) points
@@ -562,8 +564,8 @@ def fit_squircle(points, *, views=None, free=None, config: PerceptionConfig | No
         p = _contain(p, q, cfg.inside_tol)
         return Fit(_to_squircle(p), 0.0, False, np.arange(len(q)))
     best = None
-    seeds = _seeds(qs, vs, cfg)
     warm = _warm_seed(init, qs, cfg)
+    seeds = _seeds(qs, vs, cfg, ellipse=warm is None)  # (the ellipse seed is not solved after a warm one)
     # with a warm start the previous estimate stands for its basin: the rectangle seed is the
     # alternative (the ellipse seed only without a warm start)
     for k, seed in enumerate(([warm] + seeds[:1]) if warm is not None else seeds):

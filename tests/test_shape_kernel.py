@@ -293,3 +293,22 @@ def test_accumulate_is_add_at():
         np.add.at(v0, (ij[sel, 0], ij[sel, 1]), vd[sel])
         K.accumulate(n1, s1, v1, ij, pts, vd, sel)
         assert np.array_equal(n0, n1) and np.array_equal(s0, s1) and np.array_equal(v0, v1)
+
+
+def test_near_mask_is_the_kd_trees_selection():
+    """near_mask selects the free points cKDTree.query(..., distance_upper_bound=r) finds, also
+    for points exactly at distance r (strictly closer only) and on a grid of free cells."""
+    rng = np.random.default_rng(5)
+    for it in range(600):
+        q = rng.normal(size=(int(rng.integers(1, 160)), 2)) * rng.uniform(0.05, 3) + rng.normal(size=2) * 10
+        if it % 3 == 0:  # grid cells (ties in x) and points on them
+            f = (np.stack(np.meshgrid(np.arange(-30, 30), np.arange(-30, 30)), axis=-1).reshape(-1, 2) + 0.5) * 0.1
+            f = f + np.round(q.mean(axis=0), 1)
+            q[: len(q) // 2] = f[rng.integers(0, len(f), len(q) // 2)]
+        else:
+            f = rng.normal(size=(int(rng.integers(0, 600)), 2)) * rng.uniform(0.1, 4) + q.mean(axis=0)
+        r = float(rng.choice([0.1, 0.25, rng.uniform(0.01, 1.0)]))
+        if it % 5 == 0 and len(f):  # a free point exactly at distance r of a point (in x)
+            f[0] = q[0] + (r, 0.0)
+        want = np.isfinite(cKDTree(q).query(f, distance_upper_bound=r)[0]) if len(f) else np.zeros(0, bool)
+        assert np.array_equal(K.near_mask(q, f, r), want)
