@@ -14,6 +14,12 @@ same arithmetic (operation by operation, no fastmath):
   point, the free points inside the estimate (gauge ``< 1`` at the residuals' evaluation, where
   the penalty is active) and the two regularisation rows; exact derivatives, clamps
   differentiate to 0, then columns scaled by ``scale``;
+* the residuals keep each row's ``(u, v, x, y, sqrt(T), rho)`` for the Jacobian at the same
+  parameters (:func:`_residuals_keep`, :func:`_jacobian_kept`), and a free point outside the
+  estimate's bounding rectangle by more than 0.1 % gets its zero penalty without its gauge (the
+  gauge is at least ``max(|x|, |y|)``): the same values, bit for bit (tested against the full
+  evaluation, ``kept=False``); about 30 % less time per solve on recorded fits, where free
+  points outnumber the points about 3 to 1;
 * damping ``mu = 1e-4 max(diag(J^T J))`` at the start, ``mu *= max(1/3, 1 - (2 rho - 1)^3)``
   after an accepted step (``rho``: actual over predicted decrease), ``mu *= nu, nu *= 2`` after a
   rejected one; steps projected onto ``[lo, hi]``; a variable at a bound (within ``1e-12``)
@@ -170,6 +176,131 @@ def _jacobian_into(p, Q, nq, nf, w_free, ref, has_ref, wq, has_wq, g, J, rows):
 
 
 @numba.njit(**_JIT)
+def _residuals_keep(p, Q, nq, nf, w_free, ref, has_ref, wq, has_wq, out, g, keep):
+    """:func:`_residuals_into` (the same values in ``out``), keeping what :func:`_jacobian_kept`
+    needs of every row: ``keep[i] = (u, v, x, y, sqrt(max(T, 0)), rho)``. A free point outside
+    the estimate's bounding rectangle by more than 0.1 % (``|x|`` or ``|y| >= 1.001``; its gauge
+    is at least ``max(|x|, |y|)`` since ``k >= -2``) has penalty ``w_free rho max(1 / g - 1, 0) =
+    +0.0`` and no Jacobian row: ``out[i] = 0.0`` and ``g[i] = inf`` without its gauge."""
+    c, sn = math.cos(p[4]), math.sin(p[4])
+    a, b = math.exp(p[2]), math.exp(p[3])
+    k = 2.0 - 4.0 * p[5] * p[5]
+    far_ok = k >= -2.0 and w_free >= 0.0 and w_free < math.inf
+    N = nq + nf
+    for i in range(N):
+        dx, dy, u, v, x, y = local_xy(Q[i, 0], Q[i, 1], p[0], p[1], c, sn, a, b)
+        if i >= nq and far_ok and (abs(x) >= 1.001 or abs(y) >= 1.001):
+            out[i] = 0.0
+            g[i] = math.inf
+            continue
+        x2, y2 = x * x, y * y
+        T = x2 * x2 + y2 * y2 + k * x2 * y2
+        sT = math.sqrt(max(T, 0.0))
+        gi = math.sqrt(0.5 * (x2 + y2 + sT))
+        g[i] = gi
+        rho = math.hypot(u, v)
+        keep[i, 0] = u
+        keep[i, 1] = v
+        keep[i, 2] = x
+        keep[i, 3] = y
+        keep[i, 4] = sT
+        keep[i, 5] = rho
+        if i < nq:
+            r = rho * (1.0 - 1.0 / max(gi, 1e-6))
+            out[i] = r * wq[i] if has_wq else r
+        else:
+            gf = max(gi, 0.2)
+            out[i] = w_free * rho * max(1.0 / gf - 1.0, 0.0)
+    if has_ref:
+        out[N] = ref[2] * max(a - ref[0], 0.0)
+        out[N + 1] = ref[2] * max(b - ref[1], 0.0)
+
+
+@numba.njit(**_JIT)
+def _jacobian_kept(p, nq, nf, w_free, ref, has_ref, wq, has_wq, g, keep, J, rows):
+    """:func:`_jacobian_into` (the same rows, the same values) from the rows' ``(u, v, x, y,
+    sqrt(max(T, 0)), rho)`` and gauge that :func:`_residuals_keep` kept at ``p``: ``T`` and the
+    gauge are recomputed only where the clamps ``max(T, 1e-300)`` / ``max(B, 1e-300)`` of the
+    Jacobian differ from those of the residuals."""
+    a, b, s = math.exp(p[2]), math.exp(p[3]), p[5]
+    c, sn = math.cos(p[4]), math.sin(p[4])
+    k = 2.0 - 4.0 * s * s
+    N = nq + nf
+    m = 0
+    for i in range(N):
+        if i >= nq and not g[i] < 1.0:
+            continue
+        u, v, x, y, sT, rho = keep[i, 0], keep[i, 1], keep[i, 2], keep[i, 3], keep[i, 4], keep[i, 5]
+        x2, y2 = x * x, y * y
+        if sT > 1e-100:  # T far above 1e-300: the residuals' square root
+            R = sT
+        else:
+            T = x2 * x2 + y2 * y2 + k * x2 * y2
+            R = math.sqrt(max(T, 1e-300))
+        B = 0.5 * (x2 + y2 + R)
+        gg = g[i] if (R == sT and B >= 1e-300) else math.sqrt(max(B, 1e-300))
+        R2 = 2.0 * R
+        dBx = x + (2.0 * x2 * x + k * x * y2) / R2
+        dBy = y + (2.0 * y2 * y + k * x2 * y) / R2
+        g2 = 2.0 * gg
+        gx, gy = dBx / (g2 * a), dBy / (g2 * b)
+        d0 = gx * -c + gy * sn
+        d1 = gx * -sn + gy * -c
+        d2 = -dBx * x / g2
+        d3 = -dBy * y / g2
+        d4 = gx * v - gy * u
+        d5 = -2.0 * s * x2 * y2 / R / g2
+        rc = max(rho, 1e-300)
+        dr0 = (u * -c + v * sn) / rc
+        dr1 = (u * -sn + v * -c) / rc
+        if i < nq:
+            if gg < 1e-6:
+                d0 = d1 = d2 = d3 = d4 = d5 = 0.0
+                gg = 1e-6
+            f = rho / (gg * gg)
+            e = 1.0 - 1.0 / gg
+            J[m, 0] = f * d0 + dr0 * e
+            J[m, 1] = f * d1 + dr1 * e
+            J[m, 2] = f * d2
+            J[m, 3] = f * d3
+            J[m, 4] = f * d4
+            J[m, 5] = f * d5
+            if has_wq:
+                for j in range(6):
+                    J[m, j] *= wq[i]
+        elif gg < 1.0:
+            if gg < 0.2:
+                d0 = d1 = d2 = d3 = d4 = d5 = 0.0
+                gg = 0.2
+            f = rho / (gg * gg)
+            ef = max(1.0 / gg - 1.0, 0.0)
+            J[m, 0] = -(f * d0) + dr0 * ef
+            J[m, 1] = -(f * d1) + dr1 * ef
+            J[m, 2] = -(f * d2)
+            J[m, 3] = -(f * d3)
+            J[m, 4] = -(f * d4)
+            J[m, 5] = -(f * d5)
+            if w_free != 1.0:
+                for j in range(6):
+                    J[m, j] *= w_free
+        else:  # selected by the residuals' gauge, inactive by this one (rounding): zero row
+            for j in range(6):
+                J[m, j] = 0.0
+        rows[m] = i
+        m += 1
+    if has_ref:
+        for j in range(6):
+            J[m, j] = 0.0
+            J[m + 1, j] = 0.0
+        J[m, 2] = ref[2] * a if a > ref[0] else 0.0
+        J[m + 1, 3] = ref[2] * b if b > ref[1] else 0.0
+        rows[m] = N
+        rows[m + 1] = N + 1
+        m += 2
+    return m
+
+
+@numba.njit(**_JIT)
 def _normal_equations(J, rows, m, r, scale, A, grad):
     """``A = Js^T Js``, ``grad = Js^T r[rows]`` of the first ``m`` rows of ``J`` with columns
     scaled by ``scale`` (``Js``)."""
@@ -237,9 +368,11 @@ def _dot(a, b, n):
 
 
 @numba.njit(**_JIT)
-def _lm_kernel(x0, lo, hi, scale, Q, nq, nf, w_free, ref, has_ref, wq, has_wq, max_nfev, xtol, ftol):
+def _lm_kernel(x0, lo, hi, scale, Q, nq, nf, w_free, ref, has_ref, wq, has_wq, max_nfev, xtol, ftol, kept):
     """The Levenberg-Marquardt loop of :func:`perception.fit._lm` (module docstring); returns
-    ``(x, residuals at x)``."""
+    ``(x, residuals at x)``. With ``kept`` the residuals and Jacobians are those of
+    :func:`_residuals_keep` / :func:`_jacobian_kept` (the same values, less arithmetic), else
+    :func:`_residuals_into` / :func:`_jacobian_into`."""
     N = nq + nf
     n = N + 2 if has_ref else N
     x = x0.copy()
@@ -258,9 +391,17 @@ def _lm_kernel(x0, lo, hi, scale, Q, nq, nf, w_free, ref, has_ref, wq, has_wq, m
     xn = np.empty(6)
     hz = np.empty(6)
     free_ = np.empty(6, np.int64)
-    _residuals_into(x, Q, nq, nf, w_free, ref, has_ref, wq, has_wq, r, gx)
+    kx = np.empty((N if kept else 0, 6))
+    kn = np.empty((N if kept else 0, 6))
+    if kept:
+        _residuals_keep(x, Q, nq, nf, w_free, ref, has_ref, wq, has_wq, r, gx, kx)
+    else:
+        _residuals_into(x, Q, nq, nf, w_free, ref, has_ref, wq, has_wq, r, gx)
     F = 0.5 * _dot(r, r, n)
-    m = _jacobian_into(x, Q, nq, nf, w_free, ref, has_ref, wq, has_wq, gx, J, rows)
+    if kept:
+        m = _jacobian_kept(x, nq, nf, w_free, ref, has_ref, wq, has_wq, gx, kx, J, rows)
+    else:
+        m = _jacobian_into(x, Q, nq, nf, w_free, ref, has_ref, wq, has_wq, gx, J, rows)
     _normal_equations(J, rows, m, r, scale, A, grad)
     nfev = 1
     mu = -1.0  # not set yet
@@ -307,7 +448,10 @@ def _lm_kernel(x0, lo, hi, scale, Q, nq, nf, w_free, ref, has_ref, wq, has_wq, m
             xs = x[j] / scale[j]
             xx += xs * xs
         small = math.sqrt(hh) < xtol * (xtol + math.sqrt(xx))
-        _residuals_into(xn, Q, nq, nf, w_free, ref, has_ref, wq, has_wq, rn, gn)
+        if kept:
+            _residuals_keep(xn, Q, nq, nf, w_free, ref, has_ref, wq, has_wq, rn, gn, kn)
+        else:
+            _residuals_into(xn, Q, nq, nf, w_free, ref, has_ref, wq, has_wq, rn, gn)
         nfev += 1
         Fn = 0.5 * _dot(rn, rn, n)
         if math.isfinite(Fn) and Fn < F:
@@ -324,13 +468,17 @@ def _lm_kernel(x0, lo, hi, scale, Q, nq, nf, w_free, ref, has_ref, wq, has_wq, m
             x, xn = xn, x
             r, rn = rn, r
             gx, gn = gn, gx
+            kx, kn = kn, kx
             dF = F - Fn
             F = Fn
             mu *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
             nu = 2.0
             if (dF < ftol * F and rho > 0.25) or small:
                 break
-            m = _jacobian_into(x, Q, nq, nf, w_free, ref, has_ref, wq, has_wq, gx, J, rows)
+            if kept:
+                m = _jacobian_kept(x, nq, nf, w_free, ref, has_ref, wq, has_wq, gx, kx, J, rows)
+            else:
+                m = _jacobian_into(x, Q, nq, nf, w_free, ref, has_ref, wq, has_wq, gx, J, rows)
             _normal_equations(J, rows, m, r, scale, A, grad)
         else:
             if small:
@@ -350,14 +498,16 @@ def _problem_arrays(q, free, ref, wq):
 
 
 def lm(x0, lo, hi, scale, q, free, w_free: float, ref=None, wq=None, *, max_nfev: int = 30,
-       xtol: float = 1e-4, ftol: float = 1e-4) -> tuple[np.ndarray, np.ndarray]:
+       xtol: float = 1e-4, ftol: float = 1e-4, kept: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """Levenberg-Marquardt of the squircle fit (module docstring) from ``x0`` with bounds
     ``[lo, hi]``, variable scales ``scale``, points ``q (N, 2)``, free points ``free (M, 2)``
     (possibly empty), free-space weight ``w_free``, optional extent regularisation ``ref = (a0,
-    b0, weight)`` and point weights ``wq (N,)``. Returns ``(x, residuals at x)``."""
+    b0, weight)`` and point weights ``wq (N,)``. Returns ``(x, residuals at x)``. ``kept=False``
+    evaluates every row in full (:func:`_residuals_into`, :func:`_jacobian_into`): the same
+    result, bit for bit (tested), more slowly."""
     Q, nq, nf, refa, has_ref, wqa, has_wq = _problem_arrays(q, free, ref, wq)
     return _lm_kernel(_arr(x0), _arr(lo), _arr(hi), _arr(scale), Q, nq, nf, float(w_free), refa, has_ref,
-                      wqa, has_wq, int(max_nfev), float(xtol), float(ftol))
+                      wqa, has_wq, int(max_nfev), float(xtol), float(ftol), bool(kept))
 
 
 def residuals(p, q, free, w_free: float, ref=None, wq=None) -> tuple[np.ndarray, np.ndarray]:
@@ -394,6 +544,7 @@ def warm_up() -> float:
     scale = np.array([0.05, 0.05, 0.2, 0.2, 0.1, 0.1])
     lm(x0, lo, hi, scale, q, np.zeros((0, 2)), 1.0)
     lm(x0, lo, hi, scale, q, 0.5 * q, 1.0, (1.0, 0.5, 0.5), np.ones(len(q)))
+    lm(x0, lo, hi, scale, q, 0.5 * q, 1.0, kept=False)
     from . import _shape_kernel  # the refit's geometry kernels
 
     _shape_kernel.warm_up()

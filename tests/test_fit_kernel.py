@@ -332,6 +332,29 @@ def test_problem_wrapper_is_the_kernel(recorded):
         assert np.allclose(Jk, Jn, rtol=0, atol=1e-12 * max(1.0, np.abs(Jn).max()))
 
 
+@pytest.mark.parametrize("seed", range(2))
+def test_kept_rows_are_bit_identical(recorded, seed):
+    """The kernel's residuals and Jacobians from the kept row terms (``kept=True``, the default:
+    free points far outside the estimate skipped) give the result of the full evaluation
+    (``kept=False``) bit for bit: on the recorded problems (seed 0) and from perturbed starts,
+    budgets and free-space weights (seed 1; ``s`` up to its bound, points near the centre)."""
+    lm_calls, _ = recorded
+    rng = np.random.default_rng(seed)
+    for x0, lo, hi, scale, (q, free, w, ref, wq), kw, _ in lm_calls:
+        if seed:
+            x0 = np.clip(x0 + rng.normal(scale=3.0, size=6) * scale, lo, hi)
+            if rng.random() < 0.2:
+                x0[5] = hi[5]
+            if rng.random() < 0.2:
+                q = np.concatenate((q, x0[None, :2]))  # a point at the centre (T = 0)
+                wq = None if wq is None else np.append(wq, 1.0)
+            w = float(rng.choice([1.0, 2.0, 0.5]))
+            kw = dict(max_nfev=int(rng.integers(2, 40)))
+        a = _fit_kernel.lm(x0, lo, hi, scale, q, free, w, ref, wq, **kw)
+        b = _fit_kernel.lm(x0, lo, hi, scale, q, free, w, ref, wq, **kw, kept=False)
+        assert np.array_equal(a[0], b[0], equal_nan=True) and np.array_equal(a[1], b[1], equal_nan=True)
+
+
 @pytest.mark.parametrize("n", range(1, 7))
 def test_solver_matches_lapack_and_reports_singular_systems(n):
     """The kernel's elimination solves what ``np.linalg.solve`` solves, and reports the exactly
