@@ -31,6 +31,14 @@ as the numpy code it mirrors, so its results are bit-identical (tested in
 * :func:`accumulate`: ``np.add.at`` of a scan's returns into the map's cell sums (in order);
 * :func:`free_cells`: the cells a scan's beams cross (``ObstacleMap._mark_free``: the same
   products, sums, divisions and floors per sample; the cosines and sines are numpy's);
+* :func:`faces_seen`: :func:`perception.fit._faces_seen` (the same local coordinates and
+  comparisons per point);
+* :func:`warm_medians`: ``fit._median(np.abs(fit.radial_error(sq, q)))`` of several squircles
+  (the radial errors of :func:`radial_error`, the median by a sort: the same order statistics
+  and ``(x0 + x1) / 2``);
+* :func:`solve_stats`: the RMS, penalty and 95th percentile ``fit._solve`` reports (numpy's
+  pairwise sums, :func:`_pairwise_sum`, and ``fit._p95``'s interpolation of the order
+  statistics);
 * :func:`near_mask`: ``np.isfinite(cKDTree(q).query(f, distance_upper_bound=r)[0])`` of
   :func:`perception.fit._near_free` (the k-d tree keeps a point when ``dx * dx + dy * dy < r *
   r``; here the points sorted by ``x``, only those within ``r`` in ``x`` tested, stopping at the
@@ -48,7 +56,7 @@ from navigation._geom_kernel import _arr, arc_inverse, points_into
 
 __all__ = ["boundary_points", "gauge_any_inside", "clear_of", "spacing", "gauge", "radial_error", "rect_test",
            "contain", "component_labels",
-           "distance_weights", "near_mask", "warm_up"]
+           "distance_weights", "near_mask", "faces_seen", "warm_medians", "solve_stats", "warm_up"]
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -485,6 +493,116 @@ def near_mask(q: np.ndarray, f: np.ndarray, r: float) -> np.ndarray:
 
 
 @numba.njit(**_JIT)
+def _faces_kernel(p, q, views, c, s, a, b):
+    cnt = np.zeros((2, 2), np.int64)
+    for i in range(len(q)):
+        dx, dy, u, v, nu, nv = local_xy(q[i, 0], q[i, 1], p[0], p[1], c, s, a, b)
+        vu = views[i, 0] * c + views[i, 1] * s
+        vv = views[i, 1] * c - views[i, 0] * s
+        if abs(nu) >= abs(nv):
+            n, vc, axis = nu, vu, 0
+        else:
+            n, vc, axis = nv, vv, 1
+        if -n > 0.3 and -vc < -0.05:
+            cnt[axis, 0] += 1
+        if n > 0.3 and vc < -0.05:
+            cnt[axis, 1] += 1
+    return cnt
+
+
+def faces_seen(p: np.ndarray, q: np.ndarray, views: np.ndarray) -> np.ndarray:
+    """:func:`perception.fit._faces_seen` with ``views`` given: ``seen[axis, side]`` (bool (2, 2))."""
+    cnt = _faces_kernel(_arr(p), _arr(q), _arr(views), math.cos(p[4]), math.sin(p[4]), math.exp(p[2]),
+                        math.exp(p[3]))
+    return cnt >= 2
+
+
+@numba.njit(**_JIT)
+def _median_sorted(e, n):
+    e.sort()
+    h = n // 2
+    if n % 2:
+        return e[h]
+    return (e[h - 1] + e[h]) / 2
+
+
+@numba.njit(**_JIT)
+def _warm_kernel(geo, q):
+    n = len(q)
+    out = np.empty(len(geo))
+    e = np.empty(n)
+    finite = True
+    for k in range(len(geo)):
+        cx, cy, c, sn, hw, hh, kk = geo[k, 0], geo[k, 1], geo[k, 2], geo[k, 3], geo[k, 4], geo[k, 5], geo[k, 6]
+        for i in range(n):
+            dx, dy, u, v, x, y = local_xy(q[i, 0], q[i, 1], cx, cy, c, sn, hw, hh)
+            x2, y2 = x * x, y * y
+            g = gauge_xy(x2, y2, kk)
+            ei = abs(math.sqrt(dx * dx + dy * dy) * (1.0 - 1.0 / max(g, 1e-9)))
+            if not math.isfinite(ei):
+                finite = False
+            e[i] = ei
+        out[k] = _median_sorted(e, n)
+    return out, finite
+
+
+def warm_medians(squircles, q: np.ndarray) -> np.ndarray | None:
+    """``[fit._median(np.abs(fit.radial_error(sq, q))) for sq in squircles]`` for a non-empty
+    ``q``; None when an error is not finite (``np.median``'s NaN rules: the caller's)."""
+    geo = np.array([(float(sq.center[0]), float(sq.center[1]), math.cos(sq.theta), math.sin(sq.theta),
+                     sq.width / 2, sq.height / 2, 2.0 - 4.0 * sq.s * sq.s) for sq in squircles]).reshape(-1, 7)
+    out, finite = _warm_kernel(geo, _arr(q))
+    return out if finite else None
+
+
+@numba.njit(**_JIT)
+def _p95_kernel(a):
+    n = len(a)
+    v = (n - 1) * 0.95
+    lo = math.floor(v)
+    if v >= n - 1:
+        return a.max()
+    a.sort()
+    x0, x1 = a[lo], a[lo + 1]
+    t = v - lo
+    d = x1 - x0
+    return x1 - d * (1 - t) if t >= 0.5 else x0 + d * t
+
+
+@numba.njit(**_JIT)
+def _solve_stats_kernel(fun, nq, wq, has_wq):
+    rp = np.empty(nq)
+    sq = np.empty(nq)
+    finite = True
+    for i in range(nq):
+        r = fun[i] / wq[i] if has_wq else fun[i]
+        rp[i] = abs(r)
+        sq[i] = r * r
+        if not math.isfinite(r):
+            finite = False
+    rms = math.sqrt(_pairwise_sum(sq, 0, nq) / nq)
+    m = len(fun) - 2 - nq
+    pen_sq = np.empty(max(m, 0))
+    for i in range(m):
+        pen_sq[i] = fun[nq + i] * fun[nq + i]
+    pen = _pairwise_sum(pen_sq, 0, m) if m > 0 else 0.0
+    p95 = _p95_kernel(rp) if (finite and nq >= 2) else math.nan
+    return rms, pen, p95, finite and nq >= 2
+
+
+def solve_stats(fun: np.ndarray, nq: int, wq) -> tuple[float, float, float | None]:
+    """``(sqrt(mean(rp^2)), sum(fun[nq:-2]^2), _p95(|rp|))`` of ``fit._solve``, ``rp = fun[:nq] /
+    wq`` (``fun[:nq]`` without ``wq``), ``nq >= 1``, ``len(fun) >= nq + 2``; the 95th percentile is
+    None where ``fit._p95`` goes to ``np.percentile`` (fewer than 2 points, non-finite errors)."""
+    has_wq = wq is not None
+    rms, pen, p95, ok = _solve_stats_kernel(_arr(fun), int(nq), _arr(wq) if has_wq else _NO_W, has_wq)
+    return rms, pen, (p95 if ok else None)
+
+
+_NO_W = np.zeros(1)
+
+
+@numba.njit(**_JIT)
 def _accumulate_kernel(n, total, view, ij, pts, vd, sel):
     for k in range(len(ij)):
         if sel[k]:
@@ -522,3 +640,9 @@ def warm_up() -> None:
     component_labels(3, np.zeros((0, 2), np.int64))
     distance_weights(np.array([0.0, 0.0, -0.5, -1.0, 0.3, 0.9]), p)
     near_mask(p, 0.5 * p, 0.1)
+    from navigation.geometry import Squircle
+
+    faces_seen(np.array([0.0, 0.0, -0.5, -1.0, 0.3, 0.9]), p, p)
+    warm_medians([Squircle((0.0, 0.0), 1.0, 0.5, 0.3, 0.9)], p)
+    solve_stats(np.ones(8), 5, np.ones(5))
+    solve_stats(np.ones(8), 5, None)

@@ -360,11 +360,15 @@ def _warm_seed(init, q: np.ndarray, cfg: PerceptionConfig) -> np.ndarray | None:
         return None
     qq = _subsample(q, 32)
     m = qq.mean(axis=0)  # (once, not per previous estimate)
+    near = [sq for sq in init if not math.dist(sq.center, m) > sq.bounding_radius + cfg.min_unseen]
+    if not near:
+        return None
+    # the medians of all of them in one compiled pass (:func:`perception._shape_kernel.warm_medians`:
+    # ``_median(np.abs(radial_error(sq, qq)))``, bit-identical); None: a non-finite error
+    med = _shape_kernel.warm_medians(near, _arr(qq))
     best = None
-    for sq in init:
-        if math.dist(sq.center, m) > sq.bounding_radius + cfg.min_unseen:
-            continue
-        e = _median(np.abs(radial_error(sq, qq)))
+    for k, sq in enumerate(near):
+        e = float(med[k]) if med is not None else _median(np.abs(radial_error(sq, qq)))
         if e <= cfg.min_unseen and (best is None or e < best[0]):
             best = (e, sq)
     return None if best is None else _params(best[1])
@@ -423,17 +427,33 @@ def _lm(x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, scale: np.ndarray, args:
     return _fit_kernel.lm(x0, lo, hi, scale, q, free, w_free, ref, wq, max_nfev=max_nfev, xtol=xtol, ftol=ftol)
 
 
+_SCALE = np.array([0.05, 0.05, 0.2, 0.2, 0.1, 0.1])
+_BOUNDS: dict[tuple[float, float], tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
+
+
+def _bounds(cfg: PerceptionConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(lo, hi, lo + 1e-9, hi - 1e-9)``: the bounds of the parameters (extents within
+    ``[min_extent, max_extent]``, ``s`` within ``[0, _S_MAX]``), built once per pair of extents
+    (read-only)."""
+    key = (cfg.min_extent, cfg.max_extent)
+    hit = _BOUNDS.get(key)
+    if hit is None:
+        lo = np.array([-np.inf, -np.inf, math.log(cfg.min_extent / 2), math.log(cfg.min_extent / 2), -np.inf, 0.0])
+        hi = np.array([np.inf, np.inf, math.log(cfg.max_extent / 2), math.log(cfg.max_extent / 2), np.inf, _S_MAX])
+        hit = _BOUNDS[key] = (lo, hi, lo + 1e-9, hi - 1e-9)
+    return hit
+
+
 def _solve(seed: np.ndarray, q: np.ndarray, free: np.ndarray, cfg: PerceptionConfig, ref_seed=None):
     """Least squares from ``seed``; extents beyond those of ``ref_seed`` (default ``seed``) are
     penalised."""
-    lo = np.array([-np.inf, -np.inf, math.log(cfg.min_extent / 2), math.log(cfg.min_extent / 2), -np.inf, 0.0])
-    hi = np.array([np.inf, np.inf, math.log(cfg.max_extent / 2), math.log(cfg.max_extent / 2), np.inf, _S_MAX])
-    x0 = np.clip(seed, lo + 1e-9, hi - 1e-9)
-    scale = np.array([0.05, 0.05, 0.2, 0.2, 0.1, 0.1])
+    lo, hi, lo9, hi9 = _bounds(cfg)
+    x0 = np.clip(seed, lo9, hi9)
+    scale = _SCALE
     try:
         # extents beyond the seed's (the rectangle of the points, with the unseen minimum) are
         # penalised: the data does not constrain the unseen side, the estimate stays small there
-        r0 = x0 if ref_seed is None else np.clip(ref_seed, lo + 1e-9, hi - 1e-9)
+        r0 = x0 if ref_seed is None else np.clip(ref_seed, lo9, hi9)
         ref = (math.exp(r0[2]), math.exp(r0[3]), 0.1 * math.sqrt(len(q)))
         wq = _distance_weights(x0, q) if _DISTANCE_WEIGHTS else None
         if _SOLVER == "scipy":
@@ -450,13 +470,18 @@ def _solve(seed: np.ndarray, q: np.ndarray, free: np.ndarray, cfg: PerceptionCon
                 # weights there, when they moved
                 w1 = _distance_weights(x, q)
                 if float(np.max(np.abs(w1 - wq))) > _REWEIGHT_TOL:
-                    x1, fun1 = _lm(np.clip(x, lo + 1e-9, hi - 1e-9), lo, hi, scale, (q, free, 1.0, ref, w1))
+                    x1, fun1 = _lm(np.clip(x, lo9, hi9), lo, hi, scale, (q, free, 1.0, ref, w1))
                     if np.isfinite(x1).all():
                         x, fun, wq = x1, fun1, w1
     except (ValueError, np.linalg.LinAlgError):
         return None
     if not np.isfinite(x).all():
         return None
+    # compiled (:func:`perception._shape_kernel.solve_stats`): the radial errors ``rp`` below, their
+    # RMS, the penalty and ``_p95(np.abs(rp))`` (numpy's sums and order statistics, bit-identical)
+    rms, pen, p95 = _shape_kernel.solve_stats(fun, len(q), wq)
+    if p95 is not None:
+        return x, rms, pen, p95
     rp = fun[: len(q)] if wq is None else fun[: len(q)] / wq  # radial errors (the reported RMS)
     return x, float(np.sqrt(np.mean(rp * rp))), float(np.sum(fun[len(q):-2] ** 2)), _p95(np.abs(rp))
 
@@ -466,6 +491,9 @@ def _faces_seen(p: np.ndarray, q: np.ndarray, views: np.ndarray | None) -> np.nd
     seen = np.zeros((2, 2), bool)
     if views is None or not len(views):
         return ~seen
+    if len(views) == len(q):
+        # compiled (:func:`perception._shape_kernel.faces_seen`): the same coordinates and tests per point
+        return _shape_kernel.faces_seen(p, q, views)
     u, v = _local(p, q)
     a, b = math.exp(p[2]), math.exp(p[3])
     nu, nv = u / a, v / b

@@ -312,3 +312,65 @@ def test_near_mask_is_the_kd_trees_selection():
             f[0] = q[0] + (r, 0.0)
         want = np.isfinite(cKDTree(q).query(f, distance_upper_bound=r)[0]) if len(f) else np.zeros(0, bool)
         assert np.array_equal(K.near_mask(q, f, r), want)
+
+
+def _faces_seen_ref(p, q, views):
+    """``fit._faces_seen``'s numpy form."""
+    seen = np.zeros((2, 2), bool)
+    u, v = F._local(p, q)
+    a, b = math.exp(p[2]), math.exp(p[3])
+    nu, nv = u / a, v / b
+    c, s = math.cos(p[4]), math.sin(p[4])
+    vu, vv = views[:, 0] * c + views[:, 1] * s, views[:, 1] * c - views[:, 0] * s
+    on_u = np.abs(nu) >= np.abs(nv)
+    for axis, (n, vc, on) in enumerate(((nu, vu, on_u), (nv, vv, ~on_u))):
+        for side, sgn in enumerate((-1.0, 1.0)):
+            seen[axis, side] = int((on & (sgn * n > 0.3) & (sgn * vc < -0.05)).sum()) >= 2
+    return seen
+
+
+def test_faces_seen_identical():
+    for rng, sq in _random_squircles(2000, seed=8):
+        p = F._params(sq)
+        n = int(rng.integers(1, 120))
+        q = np.asarray(sq.center) + rng.normal(size=(n, 2)) * rng.uniform(0.01, 3)
+        views = rng.normal(size=(n, 2))
+        views /= np.linalg.norm(views, axis=1, keepdims=True)
+        if n > 3:  # on the diagonals (|x| = |y|) and at the thresholds
+            q[0] = sq.center
+            views[1] = (0.0, 0.0)
+        assert np.array_equal(F._faces_seen(p, q, views), _faces_seen_ref(p, q, views))
+
+
+def test_warm_medians_identical():
+    rng = np.random.default_rng(9)
+    sqs = [sq for _, sq in _random_squircles(400, seed=9)]
+    for _ in range(400):
+        n = int(rng.integers(1, 40))
+        q = rng.normal(size=(n, 2)) * rng.uniform(0.01, 5)
+        some = [sqs[i] for i in rng.integers(0, len(sqs), int(rng.integers(1, 8)))]
+        got = K.warm_medians(some, _arr(q))
+        assert got is not None
+        want = [F._median(np.abs(F.radial_error(sq, q))) for sq in some]
+        assert np.array_equal(got, np.array(want))
+
+
+def test_solve_stats_identical():
+    """solve_stats: the RMS, penalty and 95th percentile of fit._solve's numpy form."""
+    rng = np.random.default_rng(10)
+    for _ in range(3000):
+        nq, nf = int(rng.integers(1, 300)), int(rng.integers(0, 400))
+        fun = rng.normal(size=nq + nf + 2) * rng.uniform(1e-4, 1)
+        if nf and rng.random() < 0.5:
+            fun[nq: nq + nf][rng.random(nf) < 0.7] = 0.0
+        if nq > 4 and rng.random() < 0.3:
+            fun[: nq // 2] = fun[0]  # ties
+        wq = rng.uniform(0.05, 1.0, nq) if rng.random() < 0.8 else None
+        rp = fun[:nq] if wq is None else fun[:nq] / wq
+        rms, pen, p95 = K.solve_stats(fun, nq, wq)
+        assert rms == float(np.sqrt(np.mean(rp * rp)))
+        assert pen == float(np.sum(fun[nq:-2] ** 2))
+        if nq < 2:
+            assert p95 is None
+        else:
+            assert p95 == F._p95(np.abs(rp))
