@@ -39,6 +39,7 @@ as the numpy code it mirrors, so its results are bit-identical (tested in
 * :func:`solve_stats`: the RMS, penalty and 95th percentile ``fit._solve`` reports (numpy's
   pairwise sums, :func:`_pairwise_sum`, and ``fit._p95``'s interpolation of the order
   statistics);
+* :func:`box_mask`: ``((pts >= lo) & (pts <= hi)).all(axis=1)`` (the same comparisons);
 * :func:`near_mask`: ``np.isfinite(cKDTree(q).query(f, distance_upper_bound=r)[0])`` of
   :func:`perception.fit._near_free` (the k-d tree keeps a point when ``dx * dx + dy * dy < r *
   r``; here the points sorted by ``x``, only those within ``r`` in ``x`` tested, stopping at the
@@ -56,7 +57,7 @@ from navigation._geom_kernel import _arr, arc_inverse, points_into
 
 __all__ = ["boundary_points", "gauge_any_inside", "clear_of", "spacing", "gauge", "radial_error", "rect_test",
            "contain", "component_labels",
-           "distance_weights", "near_mask", "faces_seen", "warm_medians", "solve_stats", "warm_up"]
+           "distance_weights", "near_mask", "faces_seen", "warm_medians", "solve_stats", "box_mask", "warm_up"]
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -493,6 +494,21 @@ def near_mask(q: np.ndarray, f: np.ndarray, r: float) -> np.ndarray:
 
 
 @numba.njit(**_JIT)
+def _box_kernel(pts, lo0, lo1, hi0, hi1, out):
+    for i in range(len(pts)):
+        x, y = pts[i, 0], pts[i, 1]
+        out[i] = x >= lo0 and y >= lo1 and x <= hi0 and y <= hi1
+
+
+def box_mask(pts: np.ndarray, lo, hi) -> np.ndarray:
+    """``((pts >= lo) & (pts <= hi)).all(axis=1)`` of the rows of ``pts (N, 2)`` and the corners
+    ``lo``, ``hi`` (2,)."""
+    out = np.empty(len(pts), dtype=np.bool_)
+    _box_kernel(_arr(pts), float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]), out)
+    return out
+
+
+@numba.njit(**_JIT)
 def _faces_kernel(p, q, views, c, s, a, b):
     cnt = np.zeros((2, 2), np.int64)
     for i in range(len(q)):
@@ -640,6 +656,7 @@ def warm_up() -> None:
     component_labels(3, np.zeros((0, 2), np.int64))
     distance_weights(np.array([0.0, 0.0, -0.5, -1.0, 0.3, 0.9]), p)
     near_mask(p, 0.5 * p, 0.1)
+    box_mask(p, (0.0, 0.0), (1.0, 1.0))
     from navigation.geometry import Squircle
 
     faces_seen(np.array([0.0, 0.0, -0.5, -1.0, 0.3, 0.9]), p, p)

@@ -1195,7 +1195,7 @@ def _split_memo(q: np.ndarray, run: np.ndarray, cfg: PerceptionConfig, fr, cache
     n_free = 0
     if fr is not None and len(fr):
         lo, hi = sub.min(axis=0) - cfg.free_cell, sub.max(axis=0) + cfg.free_cell
-        n_free = int(np.count_nonzero(((fr >= lo) & (fr <= hi)).all(axis=1)))
+        n_free = int(np.count_nonzero(_shape_kernel.box_mask(fr, lo, hi)))  # ((fr >= lo) & (fr <= hi)).all(axis=1)
     # the cells in the run's order (cached cuts are positions within the run)
     key = ("cuts", force, n_free, len(run), hash(np.floor(sub / cfg.voxel).astype(np.int64).tobytes()))
     used.add(key)
@@ -1297,7 +1297,7 @@ def _fit_piece(q, vw, free, idx, cfg: PerceptionConfig, init=None, cache=None) -
     fr = None
     if free is not None and len(free):
         lo, hi = q[idx].min(axis=0) - 0.3, q[idx].max(axis=0) + 0.3
-        fr = free[((free >= lo) & (free <= hi)).all(axis=1)]
+        fr = free[_shape_kernel.box_mask(free, lo, hi)]  # ((free >= lo) & (free <= hi)).all(axis=1), compiled
     key = None
     if cache is not None:
         key = _cell_key(q[idx], cfg)

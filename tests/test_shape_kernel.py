@@ -374,3 +374,12 @@ def test_solve_stats_identical():
             assert p95 is None
         else:
             assert p95 == F._p95(np.abs(rp))
+
+
+def test_box_mask_identical():
+    rng = np.random.default_rng(11)
+    for _ in range(500):
+        pts = np.round(rng.normal(size=(int(rng.integers(0, 300)), 2)) * 2, int(rng.integers(0, 4)))
+        lo = np.round(rng.normal(size=2), 1)
+        hi = lo + np.round(rng.uniform(0, 3, 2), 1)
+        assert np.array_equal(K.box_mask(pts, lo, hi), ((pts >= lo) & (pts <= hi)).all(axis=1))
