@@ -302,10 +302,21 @@ def _piece_cost(points: np.ndarray, free, margin: float) -> float:
     return len(points) * e + 0.5 * margin * n_free
 
 
+_PICKS: dict[tuple[int, int], np.ndarray] = {}  # (length, n) -> the rows _subsample picks
+
+
 def _subsample(a: np.ndarray, n: int) -> np.ndarray:
+    """``n`` rows of ``a`` evenly spaced (``np.linspace(0, len(a) - 1, n)`` truncated; the index
+    arrays are kept per length, a fit subsamples its points and free points several times)."""
     if len(a) <= n:
         return a
-    return a[np.linspace(0, len(a) - 1, n).astype(int)]
+    key = (len(a), n)
+    pick = _PICKS.get(key)
+    if pick is None:
+        if len(_PICKS) > 4096:
+            _PICKS.clear()
+        pick = _PICKS[key] = np.linspace(0, len(a) - 1, n).astype(int)
+    return a[pick]
 
 
 def _near_free(free: np.ndarray, q: np.ndarray, cfg: PerceptionConfig) -> np.ndarray:
