@@ -39,6 +39,8 @@ as the numpy code it mirrors, so its results are bit-identical (tested in
 * :func:`solve_stats`: the RMS, penalty and 95th percentile ``fit._solve`` reports (numpy's
   pairwise sums, :func:`_pairwise_sum`, and ``fit._p95``'s interpolation of the order
   statistics);
+* :func:`min_gap`: ``cKDTree(a).query(b, distance_upper_bound=r)[0].min()`` (the square root of
+  the smallest ``dx * dx + dy * dy`` below ``r * r``, else ``inf``: what the k-d tree reports);
 * :func:`box_mask`: ``((pts >= lo) & (pts <= hi)).all(axis=1)`` (the same comparisons);
 * :func:`near_mask`: ``np.isfinite(cKDTree(q).query(f, distance_upper_bound=r)[0])`` of
   :func:`perception.fit._near_free` (the k-d tree keeps a point when ``dx * dx + dy * dy < r *
@@ -57,7 +59,8 @@ from navigation._geom_kernel import _arr, arc_inverse, points_into
 
 __all__ = ["boundary_points", "gauge_any_inside", "clear_of", "spacing", "gauge", "radial_error", "rect_test",
            "contain", "component_labels",
-           "distance_weights", "near_mask", "faces_seen", "warm_medians", "solve_stats", "box_mask", "warm_up"]
+           "distance_weights", "near_mask", "faces_seen", "warm_medians", "solve_stats", "box_mask", "min_gap",
+           "sorted_x", "warm_up"]
 
 _JIT = dict(cache=True, nogil=True)
 
@@ -494,6 +497,40 @@ def near_mask(q: np.ndarray, f: np.ndarray, r: float) -> np.ndarray:
 
 
 @numba.njit(**_JIT)
+def _gap_kernel(xs, ys, f, r):
+    best = r * r
+    found = False
+    n = len(xs)
+    for i in range(len(f)):
+        fx, fy = f[i, 0], f[i, 1]
+        w = math.sqrt(best)
+        pad = w + 1e-9 * (1.0 + w) + 1e-9 * abs(fx)  # (a superset of the window: |dx| >= w, dx * dx >= best)
+        j = np.searchsorted(xs, fx - pad)
+        while j < n and xs[j] <= fx + pad:
+            dx = fx - xs[j]
+            dy = fy - ys[j]
+            d2 = dx * dx + dy * dy
+            if d2 < best:
+                best = d2
+                found = True
+            j += 1
+    return math.sqrt(best) if found else math.inf
+
+
+def sorted_x(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The rows of ``a (N, 2)`` sorted by ``x``, as ``(xs, ys)`` (for :func:`min_gap`)."""
+    order = np.argsort(a[:, 0], kind="stable")
+    return _arr(a[order, 0]), _arr(a[order, 1])
+
+
+def min_gap(a_sorted: tuple[np.ndarray, np.ndarray], b: np.ndarray, r: float) -> float:
+    """``float(cKDTree(a).query(b, distance_upper_bound=r)[0].min())`` for the points ``a`` given
+    by :func:`sorted_x`: the distance between the closest pair closer than ``r`` (the same
+    squared distances, strictly below ``r * r``, and square root), else ``inf``."""
+    return float(_gap_kernel(a_sorted[0], a_sorted[1], _arr(b), float(r)))
+
+
+@numba.njit(**_JIT)
 def _box_kernel(pts, lo0, lo1, hi0, hi1, out):
     for i in range(len(pts)):
         x, y = pts[i, 0], pts[i, 1]
@@ -657,6 +694,7 @@ def warm_up() -> None:
     distance_weights(np.array([0.0, 0.0, -0.5, -1.0, 0.3, 0.9]), p)
     near_mask(p, 0.5 * p, 0.1)
     box_mask(p, (0.0, 0.0), (1.0, 1.0))
+    min_gap(sorted_x(p), 0.5 * p, 0.3)
     from navigation.geometry import Squircle
 
     faces_seen(np.array([0.0, 0.0, -0.5, -1.0, 0.3, 0.9]), p, p)

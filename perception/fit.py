@@ -841,13 +841,11 @@ def _merge_runs(points: np.ndarray, parts: list[np.ndarray], cfg: PerceptionConf
     swallowing free space, best pair (smallest error, then smallest rectangle) first: the faces
     of one wall, seen from both sides or around its end. Runs farther apart than ``reach``
     (the thickest wall plus a margin) are not merged."""
-    from scipy.spatial import cKDTree
-
     parts = [np.asarray(p) for p in parts]
     if len(parts) <= 1:
         return parts
     alive = dict(enumerate(parts))
-    trees: dict[int, cKDTree] = {}
+    trees: dict[int, tuple] = {}  # runs sorted by x (:func:`perception._shape_kernel.min_gap`)
     lo = [points[p].min(axis=0) for p in parts]
     hi = [points[p].max(axis=0) for p in parts]
     gap: dict[tuple[int, int], float] = {}  # a merged run's gap is the smaller of its parts'
@@ -860,8 +858,9 @@ def _merge_runs(points: np.ndarray, parts: list[np.ndarray], cfg: PerceptionConf
             if dx * dx + dy * dy > (1.001 * reach) ** 2:
                 continue
             if a not in trees:
-                trees[a] = cKDTree(points[parts[a]])
-            gap[(a, b)] = float(trees[a].query(points[parts[b]], distance_upper_bound=reach)[0].min())
+                trees[a] = _shape_kernel.sorted_x(points[parts[a]])
+            # compiled: ``cKDTree(run a).query(run b, distance_upper_bound=reach)[0].min()``, the same value
+            gap[(a, b)] = _shape_kernel.min_gap(trees[a], points[parts[b]], reach)
     cache: dict[tuple[int, int], tuple] = {}
 
     def cand(a, b):

@@ -383,3 +383,16 @@ def test_box_mask_identical():
         lo = np.round(rng.normal(size=2), 1)
         hi = lo + np.round(rng.uniform(0, 3, 2), 1)
         assert np.array_equal(K.box_mask(pts, lo, hi), ((pts >= lo) & (pts <= hi)).all(axis=1))
+
+
+def test_min_gap_is_the_kd_trees():
+    """min_gap: the smallest distance cKDTree.query(..., distance_upper_bound=r) reports."""
+    rng = np.random.default_rng(12)
+    for it in range(1500):
+        a = rng.normal(size=(int(rng.integers(1, 150)), 2)) * rng.uniform(0.01, 2)
+        b = rng.normal(size=(int(rng.integers(1, 150)), 2)) * rng.uniform(0.01, 2) + rng.normal(size=2) * 0.7
+        if it % 4 == 0:  # on a grid: ties
+            a, b = np.round(a, 1), np.round(b, 1)
+        r = float(rng.choice([0.35, 0.1, rng.uniform(0.01, 1.0)]))
+        want = float(cKDTree(a).query(b, distance_upper_bound=r)[0].min())
+        assert K.min_gap(K.sorted_x(a), b, r) == want
