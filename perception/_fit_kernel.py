@@ -94,6 +94,74 @@ def _residuals_into(p, Q, nq, nf, w_free, ref, has_ref, wq, has_wq, out, g):
         out[N + 1] = ref[2] * max(b - ref[1], 0.0)
 
 
+@numba.njit(**_JIT, inline="always")
+def _jacobian_row(J, m, point, gg, R, rho, u, v, x, y, x2, y2, a, b, c, sn, s, k, wqi, has_wq, w_free):
+    """Row ``m`` of the Jacobian: of a point's radial error (``point``, weighted by ``wqi`` with
+    ``has_wq``) or of a free point's penalty (weighted by ``w_free``; a zero row when its gauge
+    ``gg`` is not below 1), from the row's local coordinates, ``R = sqrt(T)`` and gauge."""
+    R2 = 2.0 * R
+    dBx = x + (2.0 * x2 * x + k * x * y2) / R2
+    dBy = y + (2.0 * y2 * y + k * x2 * y) / R2
+    g2 = 2.0 * gg
+    gx, gy = dBx / (g2 * a), dBy / (g2 * b)
+    d0 = gx * -c + gy * sn
+    d1 = gx * -sn + gy * -c
+    d2 = -dBx * x / g2
+    d3 = -dBy * y / g2
+    d4 = gx * v - gy * u
+    d5 = -2.0 * s * x2 * y2 / R / g2
+    rc = max(rho, 1e-300)
+    dr0 = (u * -c + v * sn) / rc
+    dr1 = (u * -sn + v * -c) / rc
+    if point:
+        if gg < 1e-6:
+            d0 = d1 = d2 = d3 = d4 = d5 = 0.0
+            gg = 1e-6
+        f = rho / (gg * gg)
+        e = 1.0 - 1.0 / gg
+        J[m, 0] = f * d0 + dr0 * e
+        J[m, 1] = f * d1 + dr1 * e
+        J[m, 2] = f * d2
+        J[m, 3] = f * d3
+        J[m, 4] = f * d4
+        J[m, 5] = f * d5
+        if has_wq:
+            for j in range(6):
+                J[m, j] *= wqi
+    elif gg < 1.0:
+        if gg < 0.2:
+            d0 = d1 = d2 = d3 = d4 = d5 = 0.0
+            gg = 0.2
+        f = rho / (gg * gg)
+        ef = max(1.0 / gg - 1.0, 0.0)
+        J[m, 0] = -(f * d0) + dr0 * ef
+        J[m, 1] = -(f * d1) + dr1 * ef
+        J[m, 2] = -(f * d2)
+        J[m, 3] = -(f * d3)
+        J[m, 4] = -(f * d4)
+        J[m, 5] = -(f * d5)
+        if w_free != 1.0:
+            for j in range(6):
+                J[m, j] *= w_free
+    else:  # selected by the residuals' gauge, inactive by this one (rounding): zero row
+        for j in range(6):
+            J[m, j] = 0.0
+
+
+@numba.njit(**_JIT, inline="always")
+def _reference_rows(J, rows, m, N, ref, a, b):
+    """The two regularisation rows after row ``m - 1`` (numbered ``N``, ``N + 1``); returns the
+    new row count."""
+    for j in range(6):
+        J[m, j] = 0.0
+        J[m + 1, j] = 0.0
+    J[m, 2] = ref[2] * a if a > ref[0] else 0.0
+    J[m + 1, 3] = ref[2] * b if b > ref[1] else 0.0
+    rows[m] = N
+    rows[m + 1] = N + 1
+    return m + 2
+
+
 @numba.njit(**_JIT)
 def _jacobian_into(p, Q, nq, nf, w_free, ref, has_ref, wq, has_wq, g, J, rows):
     """The Jacobian rows of :func:`_residuals_into` at ``p`` that are not identically zero (every
@@ -114,64 +182,12 @@ def _jacobian_into(p, Q, nq, nf, w_free, ref, has_ref, wq, has_wq, g, J, rows):
         rho = math.hypot(u, v)
         R = math.sqrt(max(T, 1e-300))
         gg = math.sqrt(max(0.5 * (x2 + y2 + R), 1e-300))
-        R2 = 2.0 * R
-        dBx = x + (2.0 * x2 * x + k * x * y2) / R2
-        dBy = y + (2.0 * y2 * y + k * x2 * y) / R2
-        g2 = 2.0 * gg
-        gx, gy = dBx / (g2 * a), dBy / (g2 * b)
-        d0 = gx * -c + gy * sn
-        d1 = gx * -sn + gy * -c
-        d2 = -dBx * x / g2
-        d3 = -dBy * y / g2
-        d4 = gx * v - gy * u
-        d5 = -2.0 * s * x2 * y2 / R / g2
-        rc = max(rho, 1e-300)
-        dr0 = (u * -c + v * sn) / rc
-        dr1 = (u * -sn + v * -c) / rc
-        if i < nq:
-            if gg < 1e-6:
-                d0 = d1 = d2 = d3 = d4 = d5 = 0.0
-                gg = 1e-6
-            f = rho / (gg * gg)
-            e = 1.0 - 1.0 / gg
-            J[m, 0] = f * d0 + dr0 * e
-            J[m, 1] = f * d1 + dr1 * e
-            J[m, 2] = f * d2
-            J[m, 3] = f * d3
-            J[m, 4] = f * d4
-            J[m, 5] = f * d5
-            if has_wq:
-                for j in range(6):
-                    J[m, j] *= wq[i]
-        elif gg < 1.0:
-            if gg < 0.2:
-                d0 = d1 = d2 = d3 = d4 = d5 = 0.0
-                gg = 0.2
-            f = rho / (gg * gg)
-            ef = max(1.0 / gg - 1.0, 0.0)
-            J[m, 0] = -(f * d0) + dr0 * ef
-            J[m, 1] = -(f * d1) + dr1 * ef
-            J[m, 2] = -(f * d2)
-            J[m, 3] = -(f * d3)
-            J[m, 4] = -(f * d4)
-            J[m, 5] = -(f * d5)
-            if w_free != 1.0:
-                for j in range(6):
-                    J[m, j] *= w_free
-        else:  # selected by the residuals' gauge, inactive by this one (rounding): zero row
-            for j in range(6):
-                J[m, j] = 0.0
+        _jacobian_row(J, m, i < nq, gg, R, rho, u, v, x, y, x2, y2, a, b, c, sn, s, k,
+                      wq[i] if has_wq else 1.0, has_wq, w_free)
         rows[m] = i
         m += 1
     if has_ref:
-        for j in range(6):
-            J[m, j] = 0.0
-            J[m + 1, j] = 0.0
-        J[m, 2] = ref[2] * a if a > ref[0] else 0.0
-        J[m + 1, 3] = ref[2] * b if b > ref[1] else 0.0
-        rows[m] = N
-        rows[m + 1] = N + 1
-        m += 2
+        m = _reference_rows(J, rows, m, N, ref, a, b)
     return m
 
 
@@ -243,64 +259,12 @@ def _jacobian_kept(p, nq, nf, w_free, ref, has_ref, wq, has_wq, g, keep, J, rows
             R = math.sqrt(max(T, 1e-300))
         B = 0.5 * (x2 + y2 + R)
         gg = g[i] if (R == sT and B >= 1e-300) else math.sqrt(max(B, 1e-300))
-        R2 = 2.0 * R
-        dBx = x + (2.0 * x2 * x + k * x * y2) / R2
-        dBy = y + (2.0 * y2 * y + k * x2 * y) / R2
-        g2 = 2.0 * gg
-        gx, gy = dBx / (g2 * a), dBy / (g2 * b)
-        d0 = gx * -c + gy * sn
-        d1 = gx * -sn + gy * -c
-        d2 = -dBx * x / g2
-        d3 = -dBy * y / g2
-        d4 = gx * v - gy * u
-        d5 = -2.0 * s * x2 * y2 / R / g2
-        rc = max(rho, 1e-300)
-        dr0 = (u * -c + v * sn) / rc
-        dr1 = (u * -sn + v * -c) / rc
-        if i < nq:
-            if gg < 1e-6:
-                d0 = d1 = d2 = d3 = d4 = d5 = 0.0
-                gg = 1e-6
-            f = rho / (gg * gg)
-            e = 1.0 - 1.0 / gg
-            J[m, 0] = f * d0 + dr0 * e
-            J[m, 1] = f * d1 + dr1 * e
-            J[m, 2] = f * d2
-            J[m, 3] = f * d3
-            J[m, 4] = f * d4
-            J[m, 5] = f * d5
-            if has_wq:
-                for j in range(6):
-                    J[m, j] *= wq[i]
-        elif gg < 1.0:
-            if gg < 0.2:
-                d0 = d1 = d2 = d3 = d4 = d5 = 0.0
-                gg = 0.2
-            f = rho / (gg * gg)
-            ef = max(1.0 / gg - 1.0, 0.0)
-            J[m, 0] = -(f * d0) + dr0 * ef
-            J[m, 1] = -(f * d1) + dr1 * ef
-            J[m, 2] = -(f * d2)
-            J[m, 3] = -(f * d3)
-            J[m, 4] = -(f * d4)
-            J[m, 5] = -(f * d5)
-            if w_free != 1.0:
-                for j in range(6):
-                    J[m, j] *= w_free
-        else:  # selected by the residuals' gauge, inactive by this one (rounding): zero row
-            for j in range(6):
-                J[m, j] = 0.0
+        _jacobian_row(J, m, i < nq, gg, R, rho, u, v, x, y, x2, y2, a, b, c, sn, s, k,
+                      wq[i] if has_wq else 1.0, has_wq, w_free)
         rows[m] = i
         m += 1
     if has_ref:
-        for j in range(6):
-            J[m, j] = 0.0
-            J[m + 1, j] = 0.0
-        J[m, 2] = ref[2] * a if a > ref[0] else 0.0
-        J[m + 1, 3] = ref[2] * b if b > ref[1] else 0.0
-        rows[m] = N
-        rows[m + 1] = N + 1
-        m += 2
+        m = _reference_rows(J, rows, m, N, ref, a, b)
     return m
 
 
