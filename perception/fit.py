@@ -502,20 +502,18 @@ def _faces_seen(p: np.ndarray, q: np.ndarray, views: np.ndarray | None) -> np.nd
     seen = np.zeros((2, 2), bool)
     if views is None or not len(views):
         return ~seen
-    if len(views) == len(q):
-        # compiled (:func:`perception._shape_kernel.faces_seen`): the same coordinates and tests per point
-        return _shape_kernel.faces_seen(p, q, views)
-    u, v = _local(p, q)
-    a, b = math.exp(p[2]), math.exp(p[3])
-    nu, nv = u / a, v / b
-    c, s = math.cos(p[4]), math.sin(p[4])
-    vu, vv = views[:, 0] * c + views[:, 1] * s, views[:, 1] * c - views[:, 0] * s
-    on_u = np.abs(nu) >= np.abs(nv)
-    for axis, (n, vc, on) in enumerate(((nu, vu, on_u), (nv, vv, ~on_u))):
-        for side, sgn in enumerate((-1.0, 1.0)):
-            hits = on & (sgn * n > 0.3) & (sgn * vc < -0.05)
-            seen[axis, side] = int(hits.sum()) >= 2
-    return seen
+    # compiled (:func:`perception._shape_kernel.faces_seen`): per point the local coordinates
+    # ``nu, nv`` and view directions ``vu, vv``; a face is seen when at least 2 points on it
+    # (``|n| >= |other n|``, ``sgn n > 0.3``) were seen looking into it (``sgn vc < -0.05``)
+    return _shape_kernel.faces_seen(p, q, views)
+
+
+def _check_views(views, q: np.ndarray) -> np.ndarray | None:
+    """The view directions ``views`` (None: none) checked, one row per point of ``q``."""
+    vw = None if views is None else _check(views, "views")
+    if vw is not None and len(vw) != len(q):
+        raise ScanError(f"views: expected {len(q)} rows (one per point), got {len(vw)}", "views")
+    return vw
 
 
 def _complete(p: np.ndarray, q: np.ndarray, views, cfg: PerceptionConfig) -> tuple[np.ndarray, bool]:
@@ -586,9 +584,7 @@ def fit_squircle(points, *, views=None, free=None, config: PerceptionConfig | No
     q = _check(points, "points")
     if len(q) == 0:
         raise ScanError("points: cannot fit a squircle to an empty cluster", "points")
-    vw = None if views is None else _check(views, "views")
-    if vw is not None and len(vw) != len(q):
-        raise ScanError(f"views: expected {len(q)} rows (one per point), got {len(vw)}", "views")
+    vw = _check_views(views, q)
     fr = np.zeros((0, 2)) if free is None else _check(free, "free")
     qs = _subsample(q, _MAX_POINTS)
     vs = None if vw is None else _subsample(vw, _MAX_POINTS)
@@ -1348,7 +1344,7 @@ def fit_cluster(points, *, views=None, free=None, config: PerceptionConfig | Non
     """
     cfg = config or PerceptionConfig.from_lidar()
     q = _check(points, "points")
-    vw = None if views is None else _check(views, "views")
+    vw = _check_views(views, q)
     init = None if init is None else list(init)
     cache = {} if cache is None else cache
     one_memo = cache.get("one")
