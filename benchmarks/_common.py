@@ -40,9 +40,9 @@ def write_results(out: Path, name: str, result: dict, table: str) -> None:
     print(table, end="" if table.endswith("\n") else "\n")
 
 
-def _child_start() -> None:
-    """Initializer of a spawned (not forked) child: compile or load the kernels first, as the
-    parent did (:func:`tamp.run.prepare`), so that no run times their loading."""
+def _prepare() -> None:
+    """Compile or load the kernels and freeze the start-up heap (:func:`tamp.run.prepare`), so
+    that no run times their loading: in the parent before it forks, or in a spawned child."""
     from tamp.run import prepare
 
     prepare()
@@ -58,8 +58,8 @@ def isolated_map(fn, tasks, jobs: int = 1, done=None) -> list:
     ``done(task, result)`` is called in this process as each finishes (progress lines: a
     child's own output does not reach a caller that captures ``sys.stderr``).
 
-    Every run starts from the same state: the caller's, after its :func:`tamp.run.prepare`
-    (kernels compiled, heap frozen), forked for each task (``maxtasksperchild=1``). Runs in one
+    Every run starts from the same state: this process's after :func:`tamp.run.prepare`
+    (kernels compiled, heap frozen; done here), forked for each task (``maxtasksperchild=1``). Runs in one
     process would share the process-wide memos (the forest's pairwise results, the
     per-squircle tables, the LTL translation's caches), so a run would be timed faster for
     the runs before it on the same world or mission: in the evaluation suite OHPF, run after
@@ -73,9 +73,10 @@ def isolated_map(fn, tasks, jobs: int = 1, done=None) -> list:
     if not tasks:
         return []
     if "fork" in mp.get_all_start_methods():
+        _prepare()
         ctx, init = mp.get_context("fork"), None
     else:
-        ctx, init = mp.get_context("spawn"), _child_start
+        ctx, init = mp.get_context("spawn"), _prepare
     out = [None] * len(tasks)
     with ctx.Pool(processes=max(1, min(jobs, len(tasks))), initializer=init, maxtasksperchild=1) as pool:
         for i, result in pool.imap_unordered(_indexed, [(fn, i, t) for i, t in enumerate(tasks)], chunksize=1):

@@ -48,7 +48,6 @@ import numpy as np
 
 from benchmarks._common import isolated_map, log, machine_info, write_results
 from benchmarks.methods import ADAPTATION, METHODS, ompl_status, oracle_tour, run_method
-from tamp.run import prepare
 
 __all__ = ["main", "run", "scenario", "render_markdown", "chatter_table", "CHATTER_FLAG", "SHARED"]
 
@@ -226,7 +225,6 @@ def run(names: Sequence[str], methods: Sequence[str], *, quick: bool = False, jo
         log(f"[eval] RRT* skipped: {ompl[1]}")
     tasks = [(n, m, quick, max_time) for n in names for m in methods if m != "oracle"]
     t0 = time.perf_counter()
-    prepare()  # kernels compiled once here; every run is forked from this state (isolated_map)
     results = isolated_map(_run_one, tasks, jobs, _log_run)
     runs: dict[str, dict] = {n: {} for n in names}
     for (n, m, _, _), r in zip(tasks, results):

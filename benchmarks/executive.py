@@ -57,7 +57,7 @@ from benchmarks._common import isolated_map, log, machine_info, write_results
 from tamp.harmonic_tree import NoTreePathError, RotationWeights, plan_tree
 from tamp.roadmap import Roadmap, RoadmapConfig
 from tamp.executive import ExecutiveConfig
-from tamp.run import prepare, run_mission
+from tamp.run import run_mission
 
 __all__ = ["main", "run", "run_jitter", "jittered_start", "full_knowledge_tour", "render_markdown", "TARGETS"]
 
@@ -138,7 +138,6 @@ def run_jitter(names: Sequence[str], runs: int, max_time: float = 300.0, config:
                jobs: int = 1) -> list[dict]:
     """``runs`` missions per world from jittered start poses (module doc)."""
     todo = [(name, k, max_time, config) for name in names for k in range(1, runs + 1)]
-    prepare()
     return isolated_map(_jitter_run, todo, jobs, _log_jitter)
 
 
@@ -179,9 +178,8 @@ def _log_row(_job, r: dict) -> None:
 
 def run(names: Sequence[str], max_time: float = 300.0, config: ExecutiveConfig | None = None) -> dict:
     """The nominal missions, one at a time (timed), each in a process of its own forked from
-    this prepared one (:func:`benchmarks._common.isolated_map`): no mission is timed with the
-    memos of the missions before it."""
-    prepare()
+    this one once it is prepared (:func:`benchmarks._common.isolated_map`): no mission is timed
+    with the memos of the missions before it."""
     rows = isolated_map(_nominal_run, [(name, max_time, config) for name in names], 1, _log_row)
     return {"machine": machine_info(), "targets": TARGETS, "rows": rows}
 
@@ -288,7 +286,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     except Exception as err:  # the config's own validation (TampError): one line, exit 2
         raise SystemExit(f"python -m benchmarks.executive: {err}") from None
     names = ["simple"] if args.quick else list(SHARED) + [f"random{s}" for s in range(args.random)]
-    prepare()  # as tamp-service and python -m tamp.run do at start-up: kernels compiled, heap frozen (runs fork from here)
     result = run(names, args.max_time, config)
     if over:  # JSON-ready: the controller's settings in full
         result["config"] = {k: dataclasses.asdict(v) if dataclasses.is_dataclass(v) else v for k, v in over.items()}
