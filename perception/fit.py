@@ -1307,6 +1307,9 @@ def _fit_piece(q, vw, free, idx, cfg: PerceptionConfig, init=None, cache=None) -
     key = None
     if cache is not None:
         key = _cell_key(q[idx], cfg)
+        touched = cache.get("touched")
+        if touched is not None:
+            touched.add(key)
         prev = cache.get(key)
         if prev is not None and _reusable(prev, q[idx], fr, cfg):
             return Fit(prev.squircle, prev.rms, prev.closed, idx, prev.p95)
@@ -1422,6 +1425,8 @@ def _fit_cluster(q: np.ndarray, vw, free, cfg: PerceptionConfig, max_pieces: int
     depth = max(int(math.log2(max(max_pieces, 1))), 0)
     fr = None if free is None else _check(free, "free")
     used: set = set()
+    if _KEEP_TOUCHED:
+        cache["touched"] = set()  # the cells of every piece fitted in this decomposition
     parts = _runs(q, cfg, fr, depth, cache, used)
     fits = []
     for idx in parts:
@@ -1451,11 +1456,16 @@ def _fit_cluster(q: np.ndarray, vw, free, cfg: PerceptionConfig, max_pieces: int
     loose = [_cell_key(q[f.indices], cfg) for f in fits]
     if _TIGHTEN:
         fits = _tighten(q, vw, fr, fits, cfg, grow, init, cache)
-    # keep only the pieces of this decomposition (bounded memory)
-    keep = {_cell_key(q[f.indices], cfg) for f in fits} | set(loose)
+    # keep only the pieces of this decomposition (bounded memory): those returned and, with
+    # ``_KEEP_TOUCHED``, every piece fitted on the way (the parts before cycles were broken,
+    # the pairs tried as merges)
+    keep = {_cell_key(q[f.indices], cfg) for f in fits} | set(loose) | cache.pop("touched", set())
     for k in [k for k in cache if k not in ("one", "err", "cold") and k not in keep and k not in used]:
         del cache[k]
     return _kept_records(cache, fits)
+
+
+_KEEP_TOUCHED = True
 
 
 def _kept_records(cache: dict, fits: list[Fit]) -> list[Fit]:

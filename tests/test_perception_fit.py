@@ -415,6 +415,42 @@ def test_the_cold_second_opinion_waits_for_the_cluster_to_grow(monkeypatch):
     assert calls == [False]
 
 
+@pytest.mark.parametrize("data, noise", [("random22_bump", 0.01), ("random0_junction", 0.0)])
+def test_the_memo_keeps_every_piece_of_the_last_decomposition(monkeypatch, data, noise):
+    """A refit of the same returns (warm-started from the first fit's pieces, with the cluster's
+    memo) finds the parts that cycles merged away and the pairs tried as merges in the memo
+    (``_KEEP_TOUCHED``): at most half the least-squares fits of the first decomposition, fewer
+    than with only the returned pieces memoised, and the same pieces."""
+    from pathlib import Path
+
+    import perception.fit as pf
+
+    d = np.load(Path(__file__).parent / "data" / f"{data}.npz")
+    cfg = PerceptionConfig.from_lidar(range_max=1.0, angle_increment=math.radians(1.0), noise_std=noise)
+    calls = [0]
+    inner = pf.fit_squircle
+
+    def counting(*args, **kwargs):
+        calls[0] += 1
+        return inner(*args, **kwargs)
+
+    monkeypatch.setattr(pf, "fit_squircle", counting)
+    second = {}
+    for on in (False, True):
+        monkeypatch.setattr(pf, "_KEEP_TOUCHED", on)
+        cache: dict = {}
+        calls[0] = 0
+        first = fit_cluster(d["q"], views=d["v"], free=d["free"], config=cfg, grow=0.105, cache=cache)
+        n_first = calls[0]
+        calls[0] = 0
+        again = fit_cluster(d["q"], views=d["v"], free=d["free"], config=cfg, grow=0.105,
+                            init=[f.squircle for f in first], cache=cache)
+        second[on] = calls[0]
+    assert second[True] <= 0.5 * n_first, (second, n_first)
+    assert second[True] < second[False], second
+    assert [f.squircle for f in again] == [f.squircle for f in first]
+
+
 def test_one_squircle_is_judged_by_the_estimate_it_returns(monkeypatch):
     """Returns and free cells of a rectangle and its rounded neighbour, recorded at the end of
     `random28`'s noisy drive (tests/data/random28_pair.npz). The least-squares ellipse of the
