@@ -1344,14 +1344,16 @@ def fit_cluster(points, *, views=None, free=None, config: PerceptionConfig | Non
     it (``random27``: the arm of a V fitted short from one side, 0.74 m of its 0.99 m, kept by
     its warm start at RMS 0.0065 m where a cold fit gives 0.0012 m; the end of that arm poking
     out below the other arm then went to the other arm's piece, 0.40 m thick for a 0.26 m wall,
-    RMS 0.028 m). When a piece of the warm decomposition does not explain its returns (RMS or
-    95th percentile above the criterion of :func:`_explains`), the cluster is also decomposed
+    RMS 0.028 m). When a piece of the warm decomposition misses the criterion of
+    :func:`_explains` by more than ``_COLD_WORST`` times (RMS / ``split_tol`` or 95th
+    percentile / ``3 split_tol``, as its fit recorded them), the cluster is also decomposed
     cold (no ``init``, an empty ``cache``); the cold pieces replace the warm ones (and their
     memo the cluster's) when every cold piece explains all the returns it holds, they hold no
     more free cells and they cover no more area. (Taking a cold decomposition whose worst
     piece was merely better than the warm one's, not within the criterion, lowered
-    ``random12`` noisy from 0.832 to 0.674 IoU.) A cluster is tried cold again only after it has grown by ``_COLD_GROWTH`` (its
-    returns) since its last cold try.
+    ``random12`` noisy from 0.832 to 0.674 IoU; trying cold at any miss, ``_COLD_WORST = 1``,
+    tried 8 futile cold decompositions in one executive mission.) A cluster is tried cold again
+    only after its returns have grown by ``_COLD_GROWTH`` times since its last cold try.
 
     Returns
     -------
@@ -1448,6 +1450,7 @@ def _fit_cluster(q: np.ndarray, vw, free, cfg: PerceptionConfig, max_pieces: int
                                                        np.concatenate((g.indices, f.indices)), g.p95)
     fits = list(uniq.values())
     if len(fits) <= 1:
+        cache.pop("touched", None)
         if one is None:
             one = _fit_one(q, vw, free, cfg, init, cache, False)
         return _kept_records(cache, [one])
