@@ -1001,17 +1001,27 @@ def _break_cycles(q, vw, free, fits: list[Fit], cfg: PerceptionConfig, grow: flo
         # merge, swallowing no free space, leaves less obstacle area: a redundant piece is
         # also dropped when the piece covering it is the one fitted too thick (simple noisy:
         # the right face of a wall dropped inside its left face's 0.33 m deep piece)
-        best = None
+        # (lazily: the pairs by their rectangle's cost, cheapest first; the first whose fit
+        # swallows no free point and explains its returns is the least of all, the pairs after
+        # it need no fit)
+        pairs = []
         for a in cyc:
             for b in cyc:
                 if a < b and b in adj[a]:
                     idx = np.concatenate((fits[a].indices, fits[b].indices))
-                    f = _fit_piece(q, vw, fr, idx, cfg, init, cache)
-                    explains = _explains(f, fr, cfg, free=False)
-                    deep = _deep(f.squircle, fr, cfg)
-                    c = (deep, not explains, _piece_cost(q[idx], fr, cfg.free_cell) / len(idx))
-                    if best is None or c < best[0]:
-                        best = (c, a, b, idx, f)
+                    pairs.append((_piece_cost(q[idx], fr, cfg.free_cell) / len(idx), a, b, idx))
+        if _LAZY_PAIRS:
+            pairs.sort(key=lambda t: t[0])  # stable: ties keep the order above
+        best = None
+        for cost, a, b, idx in pairs:
+            f = _fit_piece(q, vw, fr, idx, cfg, init, cache)
+            explains = _explains(f, fr, cfg, free=False)
+            deep = _deep(f.squircle, fr, cfg)
+            c = (deep, not explains, cost)
+            if best is None or c < best[0]:
+                best = (c, a, b, idx, f)
+            if _LAZY_PAIRS and not deep and explains:
+                break
         if best is not None and best[0][0] > 0 and drop is None:
             # every merge swallows free space: shrink a piece instead, refitted to its returns
             # that no other piece contains, when that ends its overlap with a neighbour in the
@@ -1054,6 +1064,8 @@ def _break_cycles(q, vw, free, fits: list[Fit], cfg: PerceptionConfig, grow: flo
         del fits[b]
     return fits
 
+
+_LAZY_PAIRS = True  # _break_cycles fits the pairs cheapest rectangle first, up to the best
 
 _TIGHTEN = True
 _TIGHTEN_AREA = 0.9
