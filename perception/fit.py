@@ -1422,6 +1422,12 @@ def fit_cluster(points, *, views=None, free=None, config: PerceptionConfig | Non
     (RMS of the single squircle above ``2 split_tol``) and has grown by less than half since is
     decomposed again without first fitting it whole.
 
+    **Local refit.** A cluster last decomposed into pieces (recorded in ``cache``) is refitted
+    piece by piece when its returns allow (:func:`_local_refit`: the new returns go to the
+    nearest piece, only the pieces they or the free space changed are refitted, taken when
+    those meet ``_LOCAL_TOL`` times the criterion and the pieces' tree is unchanged), until
+    it has ``_LOCAL_GROWTH`` times the returns of its last full decomposition.
+
     **Cold second opinion.** Warm starts keep each piece in the basin of its previous estimate,
     and a decomposition shaped by an early, partial view can survive the data that would undo
     it (``random27``: the arm of a V fitted short from one side, 0.74 m of its 0.99 m, kept by
@@ -1498,7 +1504,92 @@ def _worst_piece(q: np.ndarray, fits: list[Fit], cfg: PerceptionConfig) -> float
 
 def _fit_cluster(q: np.ndarray, vw, free, cfg: PerceptionConfig, max_pieces: int, split: bool, grow: float,
                  init, cache: dict) -> list[Fit]:
-    """:func:`fit_cluster` without the cold second opinion (checked arguments)."""
+    """:func:`fit_cluster` without the cold second opinion (checked arguments); with
+    ``_LOCAL`` the pieces returned are recorded for the next call's local refit."""
+    local: list = []
+    fits = _decompose(q, vw, free, cfg, max_pieces, split, grow, init, cache, local)
+    if _LOCAL:
+        if len(fits) > 1:
+            codes = _cell_codes(q, cfg)
+            cache["last"] = [(f.squircle, np.sort(codes[f.indices]), f.rms, f.p95, f.closed) for f in fits]
+            if not local:
+                cache["full"] = len(q)  # returns at the last full decomposition
+        else:
+            cache.pop("last", None)
+    return fits
+
+
+_LOCAL = True
+_LOCAL_TOL = 0.5  # a piece refitted locally must meet this share of the decomposition's criterion
+_LOCAL_GROWTH = 1.25  # ... and only until the cluster has this many times the returns of its last full decomposition
+_LOCAL_MEMO = 48  # a local refit trims the cluster's memo to its pieces beyond this many entries
+
+
+def _cell_codes(points: np.ndarray, cfg: PerceptionConfig) -> np.ndarray:
+    """The ``voxel`` cell of each point as one integer (the codes of :func:`_cell_key`)."""
+    cells = np.floor(points / cfg.voxel).astype(np.int64)
+    return (cells[:, 0] << 32) + cells[:, 1]
+
+
+def _local_refit(q, vw, fr, cfg: PerceptionConfig, grow: float, init, cache: dict) -> list[Fit] | None:
+    """The last decomposition of the cluster (``cache["last"]``: its pieces and their cells)
+    carried forward without decomposing again: each return in a new cell goes to the piece
+    nearest to it (smallest absolute radial error); a piece that gained returns, holds a free
+    cell deeper than ``free_tol`` or has a return more than ``inside_tol`` outside it is
+    refitted (warm-started from ``init``), the others are kept as they are. Taken when at
+    least one piece was refitted, every refitted piece explains its returns (the criterion of
+    :func:`_explains`) and keeps every free cell out, and the pieces, grown by ``grow``,
+    overlap exactly as before (the pieces' tree is unchanged); else None (decompose again).
+    Only when ``init`` is exactly the last decomposition's pieces (the map neither trimmed,
+    grew nor dropped one since)."""
+    last = cache.get("last")
+    if not last or init is None or len(init) != len(last) or len(q) >= _LOCAL_GROWTH * cache.get("full", 0):
+        return None
+    ids = {id(sq) for sq in init}
+    if any(id(rec[0]) not in ids for rec in last):
+        return None
+    codes = _cell_codes(q, cfg)
+    member = np.full(len(q), -1)
+    for k, rec in enumerate(last):
+        member[np.isin(codes, rec[1], assume_unique=True)] = k
+    new = np.nonzero(member < 0)[0]
+    if len(new):
+        err = np.abs(np.array([radial_error(rec[0], q[new]) for rec in last]))
+        member[new] = np.argmin(err, axis=0)
+    gained = np.zeros(len(last), bool)
+    gained[member[new]] = True
+    fits, redone = [], []
+    for k, (sq, cells, rms, p95, closed) in enumerate(last):
+        idx = np.nonzero(member == k)[0]
+        if len(idx) < len(cells):
+            return None  # returns were dropped: decompose again
+        if not gained[k] and float(radial_error(sq, q[idx]).max()) <= cfg.inside_tol and not _deep(sq, fr, cfg):
+            fits.append(Fit(sq, rms, closed, idx, p95))
+            continue
+        f = _fit_piece(q, vw, fr, idx, cfg, init, cache)
+        if not (f.rms <= _LOCAL_TOL * cfg.split_tol and f.p95 <= 3 * _LOCAL_TOL * cfg.split_tol) or _deep(f.squircle, fr, cfg):
+            return None
+        fits.append(f)
+        redone.append(k)
+    if not redone:
+        return None
+    for a in redone:
+        for b in range(len(fits)):
+            if b != a and _overlap(fits[a].squircle, fits[b].squircle, grow) != _overlap(last[a][0], last[b][0], grow):
+                return None
+    entries = [k for k in cache if isinstance(k, tuple)]
+    if len(entries) > _LOCAL_MEMO:
+        keep = {_cell_key(q[f.indices], cfg) for f in fits}
+        for k in entries:
+            if k not in keep:
+                del cache[k]
+    return fits
+
+
+def _decompose(q: np.ndarray, vw, free, cfg: PerceptionConfig, max_pieces: int, split: bool, grow: float,
+               init, cache: dict, local: list) -> list[Fit]:
+    """:func:`_fit_cluster` before recording the pieces (``local`` gets an entry when the
+    local refit was taken)."""
     one_memo = cache.get("one")
     one = None
     if split and one_memo is not None and one_memo[1] > 2 * cfg.split_tol and len(q) < 1.5 * one_memo[0]:
@@ -1509,6 +1600,11 @@ def _fit_cluster(q: np.ndarray, vw, free, cfg: PerceptionConfig, max_pieces: int
             return _kept_records(cache, [one])
     depth = max(int(math.log2(max(max_pieces, 1))), 0)
     fr = None if free is None else _check(free, "free")
+    if _LOCAL and split and grow > 0:
+        refit = _local_refit(q, vw, fr, cfg, grow, init, cache)
+        if refit is not None:
+            local.append(True)
+            return _kept_records(cache, refit)
     used: set = set()
     if _KEEP_TOUCHED:
         cache["touched"] = set()  # the cells of every piece fitted in this decomposition
@@ -1548,7 +1644,7 @@ def _fit_cluster(q: np.ndarray, vw, free, cfg: PerceptionConfig, max_pieces: int
     # ``_KEEP_TOUCHED``, every piece fitted on the way (the parts before cycles were broken,
     # the pairs tried as merges)
     keep = {_cell_key(q[f.indices], cfg) for f in fits} | set(loose) | cache.pop("touched", set())
-    for k in [k for k in cache if k not in ("one", "err", "cold") and k not in keep and k not in used]:
+    for k in [k for k in cache if k not in ("one", "err", "cold", "last") and k not in keep and k not in used]:
         del cache[k]
     return _kept_records(cache, fits)
 

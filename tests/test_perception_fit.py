@@ -477,3 +477,82 @@ def test_one_squircle_is_judged_by_the_estimate_it_returns(monkeypatch):
                                                      ((2.5, 3.0), (3.7, 4.1)), 2)
     assert areas[1] <= 0.9 * areas[0], areas  # 0.156 -> 0.130 m^2
     assert ious[1] > ious[0] + 0.1, ious  # 0.683 -> 0.862
+
+
+def _l_wall_returns(cfg):
+    """Returns (one per ``voxel`` cell) of the outline of an L of two 0.2 m walls, 1.0 and
+    0.9 m long."""
+    a = Squircle((0.0, 0.0), 1.0, 0.2, 0.0, 0.99)
+    b = Squircle((0.4, 0.45), 0.2, 0.9, 0.0, 0.99)
+    pts = []
+    for s, o in ((a, b), (b, a)):
+        p = s.boundary_points(400)
+        pts.append(p[radial_error(o, p) > 0.005])
+    q = np.unique(np.round(np.concatenate(pts) / cfg.voxel).astype(int), axis=0) * cfg.voxel
+    return q + 1e-4
+
+
+def _counting_fits(monkeypatch):
+    import perception.fit as pf
+
+    calls = []
+    real = pf.fit_squircle
+
+    def counted(*args, **kwargs):
+        calls.append(1)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(pf, "fit_squircle", counted)
+    return calls
+
+
+def test_a_decomposed_cluster_that_grows_along_a_piece_is_refitted_locally(monkeypatch):
+    """``_LOCAL``: the second arm of an L seen further (0.75 -> 0.9 m) refits only that arm's
+    piece (one least-squares fit); the other piece is kept as it was (the same squircle), and
+    the pieces still contain every return and form a tree once inflated."""
+    cfg = PerceptionConfig.from_lidar(range_max=1.0, angle_increment=math.radians(1.0), noise_std=0.0)
+    q = _l_wall_returns(cfg)
+    first = q[:, 1] < 0.75
+    cache: dict = {}
+    before = fit_cluster(q[first], config=cfg, grow=0.105, cache=cache)
+    assert len(before) == 2
+    calls = _counting_fits(monkeypatch)
+    after = fit_cluster(q, config=cfg, grow=0.105, init=[f.squircle for f in before], cache=cache)
+    assert len(calls) == 1
+    assert len(after) == 2 and sum(any(f.squircle is g.squircle for g in before) for f in after) == 1
+    assert sorted(np.concatenate([f.indices for f in after]).tolist()) == list(range(len(q)))
+    pieces = [f.squircle for f in after]
+    assert np.min([radial_error(p, q) for p in pieces], axis=0).max() <= cfg.inside_tol
+    assert max(max(p.width, p.height) for p in pieces) > 1.0  # the arm now 1.03 m long
+    navigation.build_forest(Squircle((0.2, 0.3), 6.0, 6.0, 0.0, 0.99), [inflate(p, 0.1) for p in pieces])
+
+
+def test_a_local_refit_that_does_not_explain_its_returns_decomposes_again(monkeypatch):
+    """A third wall meeting the L's end is no extension of a piece: the local refit of the
+    arm that took its returns misses the criterion, and the cluster is decomposed again (three
+    pieces). So is a cluster grown by ``_LOCAL_GROWTH`` since its last full decomposition."""
+    import perception.fit as pf
+
+    cfg = PerceptionConfig.from_lidar(range_max=1.0, angle_increment=math.radians(1.0), noise_std=0.0)
+    q = _l_wall_returns(cfg)
+    c = Squircle((0.65, 0.8), 0.4, 0.2, 0.0, 0.99)
+    extra = c.boundary_points(300)
+    extra = extra[(radial_error(Squircle((0.4, 0.45), 0.2, 0.9, 0.0, 0.99), extra) > 0.005) & (extra[:, 0] < 0.95)]
+    extra = np.unique(np.round(extra / cfg.voxel).astype(int), axis=0) * cfg.voxel + 1e-4
+    q3 = np.concatenate((q, extra))
+    cache: dict = {}
+    before = fit_cluster(q, config=cfg, grow=0.105, cache=cache)
+    assert len(q3) < pf._LOCAL_GROWTH * len(q)  # the growth gate does not decide here
+    local = []
+    real = pf._local_refit
+    monkeypatch.setattr(pf, "_local_refit", lambda *a, **k: local.append(real(*a, **k)) or local[-1])
+    after = fit_cluster(q3, config=cfg, grow=0.105, init=[f.squircle for f in before], cache=cache)
+    assert local == [None] and len(after) == 3
+    assert np.min([radial_error(f.squircle, q3) for f in after], axis=0).max() <= cfg.inside_tol
+    # grown past the gate: the local refit declines, the decomposition runs in full
+    local.clear()
+    cache2: dict = {}
+    small = fit_cluster(q[q[:, 1] < 0.5], config=cfg, grow=0.105, cache=cache2)
+    assert len(small) == 2 and len(q) >= pf._LOCAL_GROWTH * cache2["full"]
+    fit_cluster(q, config=cfg, grow=0.105, init=[f.squircle for f in small], cache=cache2)
+    assert local and all(r is None for r in local) and cache2["full"] == len(q)
