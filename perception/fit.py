@@ -1537,11 +1537,12 @@ def _local_refit(q, vw, fr, cfg: PerceptionConfig, grow: float, init, cache: dic
     nearest to it (smallest absolute radial error); a piece that gained returns, holds a free
     cell deeper than ``free_tol`` or has a return more than ``inside_tol`` outside it is
     refitted (warm-started from ``init``), the others are kept as they are. Taken when at
-    least one piece was refitted, every refitted piece explains its returns (the criterion of
-    :func:`_explains`) and keeps every free cell out, and the pieces, grown by ``grow``,
-    overlap exactly as before (the pieces' tree is unchanged); else None (decompose again).
-    Only when ``init`` is exactly the last decomposition's pieces (the map neither trimmed,
-    grew nor dropped one since)."""
+    least one piece was refitted, every refitted piece meets ``_LOCAL_TOL`` times the
+    criterion of :func:`_explains` and keeps every free cell out, and the pieces, grown by
+    ``grow``, overlap exactly as before (the pieces' tree is unchanged); else None (decompose
+    again). Only when ``init`` is exactly the last decomposition's pieces (the map neither
+    trimmed, grew nor dropped one since) and the cluster has fewer than ``_LOCAL_GROWTH``
+    times the returns of its last full decomposition."""
     last = cache.get("last")
     if not last or init is None or len(init) != len(last) or len(q) >= _LOCAL_GROWTH * cache.get("full", 0):
         return None
