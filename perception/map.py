@@ -79,6 +79,7 @@ _GROW_STEP = 0.03
 _REFIT_EVERY = 5  # scans between non-urgent refits of one cluster
 _REFIT_LATEST = 20  # scans after which a pending (non-urgent) refit runs even on a quiet scan
 _MERGES_PER_UPDATE = 2  # cycle merges one estimate may take part in within one update
+_SKIP_SAME = True  # a pending refit after a futile one waits while the cluster's data is unchanged
 _MAX_BACKOFF = 2  # futile free-space refits double the wait, at most 2 ** _MAX_BACKOFF times
 
 
@@ -266,6 +267,8 @@ class _Cluster:
     pending: bool = False  # contradicted by data while not due: refit when due
     by_points: bool = False  # the pending contradiction includes returns outside its estimates
     futile: int = 0  # refits in a row that left free space deeper than free_tol inside (backoff)
+    data: tuple = ()  # fingerprint of its returns and nearby free cells at its last refit
+    result: tuple = ()  # the squircles its last refit left (before trims)
     cache: dict = field(default_factory=dict)  # fit_cluster's memo of its pieces (refit cost)
 
 
@@ -591,6 +594,7 @@ class ObstacleMap:
             for lab in contra - refit:
                 self._clusters[lab].pending = True
             self.stats["refit_free"] += len(contra - refit)
+        waiting: set[int] = set()  # pending refits after a futile one
         if len(new_cells) or len(new_free):  # (a repeated scan brings nothing new: no refit)
             # pending refits (returns still inside the inflated estimates, free space inside an
             # estimate: accuracy, not safety) are at most one per cluster every
@@ -603,6 +607,8 @@ class ObstacleMap:
                 # back) waits twice as long per futile refit, up to 4 times (returns do not)
                 wait = 1 if cl.by_points else 2 ** min(cl.futile, _MAX_BACKOFF)
                 if cl.pending and age >= _REFIT_EVERY * wait and (busy or age >= _REFIT_LATEST * wait):
+                    if cl.futile and lab not in refit:
+                        waiting.add(lab)  # refitted only if its data changed since (_refit)
                     refit.add(lab)
         proposed = dict(self._est)
         changed: set[int] = set()
@@ -613,7 +619,7 @@ class ObstacleMap:
                 n = len(self._label_cells(lab)[0])
                 if n < 1.2 * cl.failed_at + 5:
                     continue  # its last refit was reverted: wait for more data
-            self._refit(lab, proposed, changed, removed, pose)
+            self._refit(lab, proposed, changed, removed, pose, futile_ok=lab not in waiting)
         # --- clearances of the robot disc (it moved) and of the regions
         if pose is not None:
             self._clear_robot(pose, proposed, changed, removed, notes)
@@ -857,13 +863,23 @@ class ObstacleMap:
             v = np.concatenate((v, nrm))
         return q, v, free
 
-    def _refit(self, lab: int, proposed: dict, changed: set, removed: set, pose) -> None:
+    def _refit(self, lab: int, proposed: dict, changed: set, removed: set, pose, futile_ok: bool = True) -> None:
         cl = self._clusters.get(lab)
         if cl is None:
             return
         q, v, free = self._cluster_data(lab)
         if not len(q):
             return
+        data = (len(q), hash(q.tobytes()), len(free), hash(np.ascontiguousarray(free).tobytes()))
+        if (not futile_ok and _SKIP_SAME and data == cl.data and len(cl.result) == len(cl.ids)
+                and all(i in proposed and proposed[i].squircle is sq for i, sq in zip(cl.ids, cl.result))):
+            # the same returns and free cells as at its last, futile, refit, and its estimates
+            # as that refit left them (no repair merged or grew one since): the same fit would
+            # come back; wait again (it stays pending)
+            cl.last_fit = self.scans
+            self.stats["refit_skipped"] += 1
+            return
+        cl.data = data
         old = [i for i in cl.ids if i in proposed]
         # an estimate the free space contradicts deeply (a free cell more than ``2 free_tol``
         # inside) is no warm start: warm-started from such a box over the free space between
@@ -917,6 +933,7 @@ class ObstacleMap:
         # estimates stayed as they were for the rest of a drive (random17 noisy: 169 free cells
         # inside one estimate, not refitted in its last 100 scans)
         cl.pending = deep
+        cl.result = tuple(proposed[i].squircle for i in ids)
         # regions: keep their discs (grown by the radius) free
         if self._trim_regions(new_ids, proposed, changed, removed):
             # decompose rather than uncover: returns a trim left outside the cluster's estimates

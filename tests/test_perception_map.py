@@ -528,3 +528,44 @@ def test_refit_starts_cold_from_an_estimate_the_free_space_contradicts(monkeypat
     proposed[est.id] = pm.Estimate(est.id, box, pm.inflate(box, omap.radius), est.cluster, est.rms, est.closed)
     omap._refit(est.cluster, proposed, set(), set(), None)
     assert not any(sq is box for sq in seen[-1])  # contradicted: no warm start
+
+
+def test_a_futile_refit_is_not_repeated_on_the_same_data(monkeypatch):
+    """A pending refit after a futile one (its last refit left free cells inside its
+    estimates) is skipped while the cluster's returns and nearby free cells are what they were
+    at that refit and its estimates are as that refit left them (the same fit would come
+    back); it runs when the data changed, when an estimate was replaced since (a repair), and
+    always when it is not such a pending refit."""
+    import perception.map as pm
+
+    world, sim, omap, poses = _simple_after_40_scans()
+    calls = []
+    real = pm.fit_cluster
+    monkeypatch.setattr(pm, "fit_cluster", lambda q, **kw: calls.append(1) or real(q, **kw))
+    lab = next(iter(omap.estimates.values())).cluster
+
+    def refit(**kw):
+        proposed = dict(omap._est)
+        omap._refit(lab, proposed, set(), set(), None, **kw)
+        omap._est = proposed
+
+    refit()
+    assert len(calls) == 1
+    before = omap.stats["refit_skipped"]
+    refit(futile_ok=False)  # the same data, the estimates as left: skipped
+    assert len(calls) == 1 and omap.stats["refit_skipped"] == before + 1
+    refit()  # not a waiting refit: runs
+    assert len(calls) == 2
+    refit(futile_ok=False)
+    assert len(calls) == 2  # skipped again
+    i = omap._clusters[lab].ids[0]
+    e = omap._est[i]
+    grown = pm._scale(e.squircle, 0.01)
+    omap._est[i] = pm.Estimate(i, grown, pm.inflate(grown, omap.radius), lab, e.rms, e.closed)
+    refit(futile_ok=False)  # an estimate replaced since (as by a repair): runs
+    assert len(calls) == 3
+    refit(futile_ok=False)
+    assert len(calls) == 3
+    omap._clusters[lab].data = ()  # as if its returns or free cells had changed
+    refit(futile_ok=False)
+    assert len(calls) == 4
