@@ -19,7 +19,9 @@ The map starts knowing only the workspace and grows from scans:
    cluster pending: refitted at most once every 5 scans, together with a scan that refits
    anyway (one forest check), or alone after 20 scans (up to 4 times longer for free space
    that the last refits could not clear; such a futile refit, and a repair merging two
-   estimates, leave the cluster pending). The cluster is fitted by
+   estimates, leave the cluster pending; a pending refit after a futile one is skipped while
+   the cluster's returns, nearby free cells and estimates are those of that refit). The
+   cluster is fitted by
    :func:`perception.fit.fit_cluster` (one squircle or a decomposition), extended through the
    workspace boundary when it touches it (walls on the boundary): its returns within
    ``ws_touch`` of the boundary get virtual copies just beyond it, moved along the cluster's
