@@ -7,9 +7,12 @@ the kernel are run on fitting problems recorded from drives of the simulator's l
 ``office`` (noise-free) and ``cluttered20`` (1 cm range noise): the ``_lm`` calls of
 ``ObstacleMap`` refits, as they are, and from randomly perturbed starts and evaluation budgets
 (fixed seeds). Tolerances: parameters within ``1e-7`` in the solver's scaled variables
-(``|dx| / scale``), cost ``0.5 |r|^2`` within ``1e-9`` relative, residual vectors within
-``1e-9``, on the problems as recorded (measured: ``5e-10`` and ``5e-11``: rounding, the accept
-/ reject decisions agree). From perturbed starts a decision can be made by a rounding error and
+(``|dx| / scale``), cost ``0.5 |r|^2`` within ``1e-9`` relative plus ``1e-9 |r|`` (what
+residuals within their own tolerance change it by, to first order), residual vectors within
+``1e-9``, on the problems as recorded (measured on 566 problems: parameters within ``2e-8``,
+residuals within ``7e-12``; costs within ``5e-11`` relative but on one problem, whose cost is
+``7e-7`` (a near-exact fit), ``3.4e-9`` relative, ``2.5e-15`` absolute: the two stop one
+step apart at the same point to rounding). From perturbed starts a decision can be made by a rounding error and
 the paths part: there the kernel's cost is never worse than numpy's by more than ``1e-6``
 relative and the parameters agree to ``1e-7`` on at least 95 % of the problems (measured: at
 least 125 of 127, parameters within ``3e-8``, cost at most ``7e-10`` relative above numpy's).
@@ -279,7 +282,7 @@ def test_kernel_matches_numpy_lm_on_recorded_problems(recorded):
     for x0, lo, hi, scale, args, kw, (x, r) in lm_calls:
         xn, rn = _numpy_lm(x0, lo, hi, scale, args, **kw)
         assert _scaled_dx(x, xn, scale) <= 1e-7
-        assert abs(_cost(r) - _cost(rn)) <= 1e-9 * _cost(rn) + 1e-300
+        assert abs(_cost(r) - _cost(rn)) <= 1e-9 * _cost(rn) + 1e-9 * float(np.linalg.norm(rn))
         assert r.shape == rn.shape and np.allclose(r, rn, rtol=0, atol=1e-9)
 
 
