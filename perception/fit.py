@@ -1171,25 +1171,71 @@ def _extend(q, vw, fr, fits: list[Fit], cfg: PerceptionConfig, grow: float, init
             d = q[P.indices] - c
             u, v = d @ e, d @ np.array([-e[1], e[0]])
             side = 1.0 if float((np.asarray(sp.center) - c) @ e) >= 0 else -1.0
-            band = (np.abs(v) <= half_thick + cfg.split_tol) & (side * u > half_len - cfg.split_tol)
+            end = half_len - cfg.split_tol
+            if _EXTEND_BACK:
+                end = min(end, float(((q[A.indices] - c) @ e * side).max()))  # or beyond its returns
+            band = (np.abs(v) <= half_thick + cfg.split_tol) & (side * u > end)
             n_band = int(np.count_nonzero(band))
             if n_band < 3 or len(P.indices) - n_band < cfg.min_piece:
                 continue
             fa = _fit_piece(q, vw, fr, np.concatenate((A.indices, P.indices[band])), cfg, init, cache)
             fp = _fit_piece(q, vw, fr, P.indices[~band], cfg, init, cache)
-            if not (_explains(fa, fr, cfg, free=False) and _explains(fp, fr, cfg, free=False)):
-                continue
-            if _deep(fa.squircle, fr, cfg) or _deep(fp.squircle, fr, cfg):
+            area = _EXTEND_AREA
+            if _EXTEND_BACK and _clean(fp, fr, cfg) and not _clean(fa, fr, cfg):
+                # the donor is clean now, the receiver not: a bar whose piece held the corner of
+                # the wall it runs into, and whose own end pokes out of that wall's far face
+                # (random12): the clean bar takes back its end, then the returns it contains
+                back = _band_beyond(q, fp, fa)
+                if back is None:
+                    continue
+                fp = _fit_piece(q, vw, fr, np.concatenate((fp.indices, fa.indices[back])), cfg, init, cache)
+                rest = fa.indices[~back]
+                rest = rest[radial_error(fp.squircle, q[rest]) > cfg.inside_tol]
+                if len(rest) < cfg.min_piece:
+                    continue
+                fa = _fit_piece(q, vw, fr, rest, cfg, init, cache)
+                area = 1.0  # both explain their returns now, where the donor did not: no larger
+            if not (_clean(fa, fr, cfg) and _clean(fp, fr, cfg)):
                 continue
             if not _overlap(fa.squircle, fp.squircle, grow) or any(
                     _overlap(f.squircle, fits[k].squircle, grow) != _overlap(g.squircle, fits[k].squircle, grow)
                     for k in range(n) if k not in (a, p) for f, g in ((fa, A), (fp, P))):
                 continue
-            if _union_area([fa.squircle, fp.squircle]) > _EXTEND_AREA * _union_area([sa, sp]):
+            if _union_area([fa.squircle, fp.squircle]) > area * _union_area([sa, sp]):
                 continue
+            if _EXTEND_BACK:
+                # every return stays with a piece (the returns fp contains that fa gave up)
+                held = np.union1d(fa.indices, fp.indices)
+                lost = np.setdiff1d(np.union1d(A.indices, P.indices), held)
+                if len(lost):
+                    fp = Fit(fp.squircle, fp.rms, fp.closed, np.concatenate((fp.indices, lost)), fp.p95)
             fits[a], fits[p] = fa, fp
             break
     return fits
+
+
+_EXTEND_BACK = True  # _extend's second step: the clean donor takes back its end
+
+
+def _clean(f: Fit, fr, cfg: PerceptionConfig) -> bool:
+    """``f`` explains its returns (the criterion, by its recorded errors) and holds no free
+    cell deeper than ``free_tol``."""
+    return _explains(f, fr, cfg, free=False) and not _deep(f.squircle, fr, cfg)
+
+
+def _band_beyond(q: np.ndarray, b: Fit, g: Fit) -> np.ndarray | None:
+    """Mask of the returns of ``g`` in the band of the elongated piece ``b`` (within its
+    half-thickness of its long axis) beyond ``b``'s own returns on ``g``'s side; None when
+    ``b`` is not elongated (1.5 times as long as thick) or fewer than 3 returns qualify."""
+    e, half_len, half_thick = _long_axis(b.squircle)
+    if half_len < 1.5 * half_thick:
+        return None
+    c = np.asarray(b.squircle.center)
+    side = 1.0 if float((np.asarray(g.squircle.center) - c) @ e) >= 0 else -1.0
+    reach = float(((q[b.indices] - c) @ e * side).max())
+    d = q[g.indices] - c
+    m = (np.abs(d @ np.array([-e[1], e[0]])) <= half_thick) & (d @ e * side > reach)
+    return m if np.count_nonzero(m) >= 3 else None
 
 
 def _deep(sq: Squircle, fr, cfg: PerceptionConfig, depth: float | None = None) -> int:

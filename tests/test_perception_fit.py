@@ -364,6 +364,22 @@ def test_a_wall_poking_through_another_is_extended_through_it(monkeypatch):
     assert ious[1] > ious[0] + 0.05, ious  # 0.791 -> 0.888
 
 
+def test_a_bar_through_a_wall_takes_back_its_end(monkeypatch):
+    """Returns, free cells and the four estimates of a bar running into a diagonal wall,
+    recorded at the end of `random12`'s noise-free drive (tests/data/random12_t.npz). The bar's
+    end pokes out of the diagonal's far face and the diagonal's end is flush with the bar's top
+    face: the bar's piece held the diagonal's corner (an ellipse, RMS 0.023 m) and the
+    diagonal's piece the bar's end (0.35 m thick for 0.25 m). ``_extend`` gives the corner to
+    the diagonal, which leaves the bar clean; with ``_EXTEND_BACK`` the clean bar then takes
+    back its end (the diagonal's returns in the bar's band beyond the bar's own returns) and
+    the returns it contains, and both pieces explain their returns: the union matches the
+    walls better and swallows no free cell."""
+    areas, ious = _recorded_cluster_with_and_without(monkeypatch, "_EXTEND_BACK", "random12_t", 12, 0.0,
+                                                     ((0.2, 1.7), (1.5, 2.5)), 4, free_before=False)
+    assert ious[1] > ious[0] + 0.05, ious  # 0.753 -> 0.845
+    assert areas[1] < areas[0], areas  # 0.768 -> 0.731 m^2
+
+
 def test_a_cycle_piece_is_dissolved_into_its_neighbours(monkeypatch):
     """Returns and free cells of a 0.23 m wall with a round bump on one face, recorded at the
     end of `random22`'s noisy drive (tests/data/random22_bump.npz). The decomposition gives three
