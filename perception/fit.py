@@ -1155,7 +1155,13 @@ def _extend(q, vw, fr, fits: list[Fit], cfg: PerceptionConfig, grow: float, init
     out (none deeper than ``free_tol``), overlap (grown by ``grow``) each other and exactly the
     pieces the old ones did (the pieces' tree is unchanged), and cover at least ``1 -
     _EXTEND_AREA`` less area together (:func:`_union_area`: ``A`` extended through ``P`` adds
-    mostly area ``P`` covers). ``A`` must be at least 1.5 times as long as thick."""
+    mostly area ``P`` covers). ``A`` must be at least 1.5 times as long as thick. With
+    ``_EXTEND_BACK`` the band also ends at ``A``'s farthest return, and a move that leaves
+    ``P`` clean but not ``A`` gets a second step: ``P`` takes back ``A``'s returns in ``P``'s
+    own band beyond ``P``'s returns (:func:`_band_beyond`), then those it contains within
+    ``inside_tol``; that pair is taken when both are clean, the tree is unchanged and the union
+    is no larger (``random12`` noise-free: a bar poking through a wall whose end is flush with
+    the bar's face, IoU 0.774 -> 0.870)."""
     fits = list(fits)
     n = len(fits)
     for p in range(n):
