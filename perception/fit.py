@@ -1376,9 +1376,7 @@ def _cell_key(points: np.ndarray, cfg: PerceptionConfig) -> tuple:
     # the set of cells as sorted unique linear codes (``np.unique(..., axis=0)`` of the rows,
     # 10x slower, gave the same key equality: the code is one-to-one for cell indices below
     # 2^31 in magnitude)
-    cells = np.floor(points / cfg.voxel).astype(np.int64)
-    codes = np.unique((cells[:, 0] << 32) + cells[:, 1])
-    return len(points), hash(codes.tobytes())
+    return len(points), hash(np.unique(_cell_codes(points, cfg)).tobytes())
 
 
 def _reusable(f: Fit, q: np.ndarray, free, cfg: PerceptionConfig) -> bool:
@@ -1558,14 +1556,11 @@ def _fit_cluster(q: np.ndarray, vw, free, cfg: PerceptionConfig, max_pieces: int
                  init, cache: dict) -> list[Fit]:
     """:func:`fit_cluster` without the cold second opinion (checked arguments); with
     ``_LOCAL`` the pieces returned are recorded for the next call's local refit."""
-    local: list = []
-    fits = _decompose(q, vw, free, cfg, max_pieces, split, grow, init, cache, local)
+    fits = _decompose(q, vw, free, cfg, max_pieces, split, grow, init, cache)
     if _LOCAL:
         if len(fits) > 1:
             codes = _cell_codes(q, cfg)
             cache["last"] = [(f.squircle, np.sort(codes[f.indices]), f.rms, f.p95, f.closed) for f in fits]
-            if not local:
-                cache["full"] = len(q)  # returns at the last full decomposition
         else:
             cache.pop("last", None)
     return fits
@@ -1640,9 +1635,9 @@ def _local_refit(q, vw, fr, cfg: PerceptionConfig, grow: float, init, cache: dic
 
 
 def _decompose(q: np.ndarray, vw, free, cfg: PerceptionConfig, max_pieces: int, split: bool, grow: float,
-               init, cache: dict, local: list) -> list[Fit]:
-    """:func:`_fit_cluster` before recording the pieces (``local`` gets an entry when the
-    local refit was taken)."""
+               init, cache: dict) -> list[Fit]:
+    """:func:`_fit_cluster` before recording the pieces; a full decomposition records its
+    returns in ``cache["full"]`` (the local refit's growth gate)."""
     one_memo = cache.get("one")
     one = None
     if split and one_memo is not None and one_memo[1] > 2 * cfg.split_tol and len(q) < 1.5 * one_memo[0]:
@@ -1656,7 +1651,6 @@ def _decompose(q: np.ndarray, vw, free, cfg: PerceptionConfig, max_pieces: int, 
     if _LOCAL and split and grow > 0:
         refit = _local_refit(q, vw, fr, cfg, grow, init, cache)
         if refit is not None:
-            local.append(True)
             return _kept_records(cache, refit)
     used: set = set()
     if _KEEP_TOUCHED:
@@ -1699,6 +1693,8 @@ def _decompose(q: np.ndarray, vw, free, cfg: PerceptionConfig, max_pieces: int, 
     keep = {_cell_key(q[f.indices], cfg) for f in fits} | set(loose) | cache.pop("touched", set())
     for k in [k for k in cache if k not in ("one", "err", "cold", "last") and k not in keep and k not in used]:
         del cache[k]
+    if _LOCAL:
+        cache["full"] = len(q)  # returns at the last full decomposition
     return _kept_records(cache, fits)
 
 
