@@ -37,8 +37,9 @@ contradict is kept without a fit (:func:`_kept`). Then the *conservative complet
 :func:`fit_cluster` decomposes clusters a single squircle does not explain (paper 001
 section 4.2.1): when the RMS radial error exceeds ``split_tol`` the cluster is split at its
 corners - connected components, then runs of points whose local direction (principal axis of
-their neighbours) agrees modulo 90 degrees, runs that still bend cut where they bend (each side
-of a cut split into its connected components, :func:`_connected`) - and the
+their neighbours) agrees modulo 90 degrees, runs that still bend split by the modes of their
+directions (:func:`_mode_split`: walls crossing at a shallow angle) and then cut where they bend
+(each side of a cut split into its connected components, :func:`_connected`) - and the
 runs one rectangle explains together without swallowing free space (the faces of one wall) are
 merged back; every piece is fitted on its own, and adjacent pieces overlap once inflated,
 forming a tree (cycles broken by :func:`_break_cycles`); a piece is then refitted without the
@@ -752,17 +753,115 @@ def _components(points: np.ndarray, link: float) -> list[np.ndarray]:
     return np.split(order, np.cumsum(np.bincount(lab))[:-1])
 
 
-def _segments(points: np.ndarray, cfg: PerceptionConfig) -> list[np.ndarray]:
+def _segments(points: np.ndarray, cfg: PerceptionConfig) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
     """Split a cluster at its corners (paper 001 section 4.2.1): index sets of connected runs
     of points whose local direction (principal axis of the points within ``radius``) is the
     same modulo 90 degrees. Points at a corner (no dominant direction) join the run of their
     nearest straight neighbour; runs of fewer than ``min_piece`` points join their nearest run.
     Faces of one rectangle share the direction modulo 90 degrees; walls meeting at a corner
-    under another angle, and any concave corner, separate runs."""
+    under another angle, and any concave corner, separate runs. Also returns each point's
+    direction and straightness (:func:`_directions`)."""
+    from scipy.spatial import cKDTree
+
+    tree = cKDTree(points)
+    psi, straight = _directions(points, cfg, tree)
+    pairs = _linked(tree, psi, straight, cfg)
+    return _labelled_runs(points, pairs, straight, cfg), psi, straight
+
+
+def _linked(tree, psi: np.ndarray, straight: np.ndarray, cfg: PerceptionConfig, mode=None) -> np.ndarray:
+    """Pairs of straight neighbours (within ``max(2.5 voxel, 0.05) + 2 sigma``) whose
+    directions agree modulo 90 degrees (:func:`_direction_tol`) and, with ``mode``, that
+    belong to the same direction mode."""
+    pairs = tree.query_pairs(max(2.5 * cfg.voxel, 0.05) + 2 * cfg.noise_std, output_type="ndarray")
+    if len(pairs):
+        a, b = pairs[:, 0], pairs[:, 1]
+        dpsi = np.abs(psi[a] - psi[b])
+        dpsi = np.minimum(dpsi, math.pi / 2 - dpsi)
+        keep = straight[a] & straight[b] & (dpsi < _direction_tol(cfg))
+        if mode is not None:
+            keep &= mode[a] == mode[b]
+        pairs = pairs[keep]
+    return pairs
+
+
+_MODES = True  # a run that bends is first split by the modes of its directions (:func:`_mode_split`)
+_MODE_VALLEY = 0.5  # two direction modes are distinct when the density between them falls below this share
+
+
+def _mode_split(points: np.ndarray, psi: np.ndarray, straight: np.ndarray, cfg: PerceptionConfig) -> list[np.ndarray] | None:
+    """Split a run whose directions (mod 90 degrees) form two or more distinct modes: index
+    sets of the connected runs of straight points within :func:`_direction_tol` of one mode
+    (the other points join the run of their nearest point in a large run, as in
+    :func:`_segments`). None when the directions have a single mode.
+
+    The direction links of :func:`_segments` chain: near a shallow concave corner the local
+    directions (principal axes over a few centimetres) turn gradually from one face's to the
+    other's, every neighbouring pair agrees within the tolerance, and two walls crossing at
+    48 degrees became one run (``random12`` noisy: a run along the faces of both walls of an
+    X, cut by :func:`_split` into pieces across the corners). Modes are the peaks of the
+    directions' density (a Gaussian kernel of half the tolerance on the circle of directions
+    mod 90 degrees) holding at least ``min_piece`` straight points, at least twice the
+    tolerance apart, with the density along one of the arcs between them below
+    ``_MODE_VALLEY`` times the lower peak: the faces and ends of one rectangle share a mode, a curved wall has none distinct."""
+    from scipy.spatial import cKDTree
+
+    tol = _direction_tol(cfg)
+    ang = psi[straight]
+    if len(ang) < 2 * cfg.min_piece:
+        return None
+    bins = 180
+    grid = (np.arange(bins) + 0.5) * (math.pi / 2) / bins
+    d = np.abs(grid[:, None] - ang[None, :])
+    d = np.minimum(d, math.pi / 2 - d)
+    dens = np.exp(-0.5 * (d / (0.5 * tol)) ** 2).sum(axis=1)
+    peaks = [i for i in range(bins) if dens[i] >= dens[i - 1] and dens[i] > dens[(i + 1) % bins]]
+    peaks.sort(key=lambda i: -dens[i])
+    modes: list[int] = []
+    for i in peaks:
+        if int(np.count_nonzero(d[i] < tol)) < cfg.min_piece:
+            continue
+        ok = True
+        for j in modes:
+            sep = abs(i - j)
+            sep = min(sep, bins - sep)
+            if sep * (math.pi / 2) / bins < 2 * tol:
+                ok = False
+                break
+            # the density falls between the two peaks along one of the arcs joining them (along
+            # the other, the directions at a concave corner turn from one face's to the other's)
+            arc = (np.arange(bins) - i) % bins <= (j - i) % bins
+            if min(dens[arc].min(), dens[~arc].min()) > _MODE_VALLEY * min(dens[i], dens[j]):
+                ok = False
+                break
+        if ok:
+            modes.append(i)
+    if len(modes) < 2:
+        return None
+    dm = np.abs(psi[:, None] - grid[modes][None, :])
+    dm = np.minimum(dm, math.pi / 2 - dm)
+    mode = np.argmin(dm, axis=1)
+    assigned = straight & (dm.min(axis=1) < tol)
+    tree = cKDTree(points)
+    runs = _labelled_runs(points, _linked(tree, psi, assigned, cfg, mode), assigned, cfg)
+    return runs if len(runs) > 1 else None
+
+
+def _direction_tol(cfg: PerceptionConfig) -> float:
+    """Directions (mod 90 degrees) closer than this agree: ``12 + 300 sigma`` degrees (``sigma``
+    in metres: 15 degrees at 1 cm noise)."""
+    return math.radians(12.0 + 300.0 * cfg.noise_std)
+
+
+def _directions(points: np.ndarray, cfg: PerceptionConfig, tree=None) -> tuple[np.ndarray, np.ndarray]:
+    """Each point's local direction modulo 90 degrees (the principal axis of its up to 24
+    neighbours within ``max(0.06, 3 voxel) + 3 sigma``), in ``[0, pi / 2)``, and whether it is
+    *straight* (the spread across that axis small against the spread along it, plus the range
+    noise, which the averaged returns keep partly)."""
     from scipy.spatial import cKDTree
 
     n = len(points)
-    tree = cKDTree(points)
+    tree = cKDTree(points) if tree is None else tree
     radius = max(0.06, 3 * cfg.voxel) + 3 * cfg.noise_std
     k = min(n, 24)
     d, nb = tree.query(points, k=k)
@@ -780,13 +879,15 @@ def _segments(points: np.ndarray, cfg: PerceptionConfig) -> list[np.ndarray]:
     sn, st = np.sqrt(l2 / np.maximum(cnt, 1)), np.sqrt(l1 / np.maximum(cnt, 1))
     straight = (cnt >= 4) & (sn <= 0.2 * st + cfg.noise_std)
     psi = np.mod(0.5 * np.arctan2(2 * sxy, sxx - syy), math.pi / 2)
-    pairs = tree.query_pairs(max(2.5 * cfg.voxel, 0.05) + 2 * cfg.noise_std, output_type="ndarray")
-    if len(pairs):
-        a, b = pairs[:, 0], pairs[:, 1]
-        dpsi = np.abs(psi[a] - psi[b])
-        dpsi = np.minimum(dpsi, math.pi / 2 - dpsi)
-        keep = straight[a] & straight[b] & (dpsi < math.radians(12.0 + 300.0 * cfg.noise_std))
-        pairs = pairs[keep]
+    return psi, straight
+
+
+def _labelled_runs(points: np.ndarray, pairs: np.ndarray, straight: np.ndarray, cfg: PerceptionConfig) -> list[np.ndarray]:
+    """The connected runs of straight points linked by ``pairs``; corner points and runs of
+    fewer than ``min_piece`` points join the run of their nearest point in a large run."""
+    from scipy.spatial import cKDTree
+
+    n = len(points)
     _, lab = _shape_kernel.component_labels(n, pairs)  # = connected_components of the pairs (same labels)
     lab = np.where(straight, lab, -1)
     sizes = np.bincount(lab[lab >= 0], minlength=n) if (lab >= 0).any() else np.zeros(n, int)
@@ -1359,15 +1460,39 @@ def _runs(q: np.ndarray, cfg: PerceptionConfig, fr, depth: int, cache=None, used
         if len(comp) < 2 * cfg.min_piece:
             parts.append(comp)
             continue
-        for seg in _segments(q[comp], cfg):
+        segs, psi, straight = _segments(q[comp], cfg)
+        for seg in segs:
             run = comp[seg]
-            if rect_error(q[run]) <= cfg.split_tol or _ellipse_error(q[run]) <= cfg.split_tol:
+            if _explained_run(q[run], cfg):
                 parts.append(run)  # straight (faces of one wall) or curved (an ellipse)
             else:  # a bend the directions did not separate: cut it where it bends
-                parts.extend(_split_memo(q, run, cfg, fr, cache, used, False, lambda run=run: _connected(q, _split(
-                    q, run, cfg.split_tol, cfg.min_piece, depth, free=fr, margin=cfg.free_cell), cfg)))
+                parts.extend(_split_memo(q, run, cfg, fr, cache, used, False, lambda run=run, seg=seg: _bend_cuts(
+                    q, run, psi[seg], straight[seg], cfg, fr, depth)))
     parts = _merge_runs(q, parts, cfg, fr)
     return parts
+
+
+def _explained_run(points: np.ndarray, cfg: PerceptionConfig) -> bool:
+    """One rectangle (faces of one wall) or one ellipse (a curved obstacle) explains a run."""
+    return rect_error(points) <= cfg.split_tol or _ellipse_error(points) <= cfg.split_tol
+
+
+def _bend_cuts(q: np.ndarray, run: np.ndarray, psi: np.ndarray, straight: np.ndarray, cfg: PerceptionConfig, fr,
+               depth: int) -> list[np.ndarray]:
+    """Cuts of a run that bends: first by the modes of its directions (:func:`_mode_split`,
+    ``psi`` and ``straight`` of its points), then each sub-run that still bends where it bends
+    (:func:`_split`), in connected components (:func:`_connected`)."""
+    subs = _mode_split(q[run], psi, straight, cfg) if _MODES else None
+    if subs is None:
+        subs = [np.arange(len(run))]
+    parts = []
+    for sub in subs:
+        idx = run[sub]
+        if len(subs) > 1 and _explained_run(q[idx], cfg):
+            parts.append(idx)
+        else:
+            parts.extend(_split(q, idx, cfg.split_tol, cfg.min_piece, depth, free=fr, margin=cfg.free_cell))
+    return _connected(q, parts, cfg)
 
 
 def _cell_key(points: np.ndarray, cfg: PerceptionConfig) -> tuple:

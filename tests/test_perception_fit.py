@@ -410,6 +410,58 @@ def test_a_warm_decomposition_that_does_not_explain_its_returns_gets_a_cold_seco
     assert ious[1] > 0.95, ious
 
 
+def test_walls_crossing_at_a_shallow_angle_are_split_by_direction_modes(monkeypatch):
+    """Returns and free cells of two walls crossing in an X at 48 degrees, recorded at the end
+    of `random12`'s noisy drive (tests/data/random12_x.npz). Near the shallow concave corners the
+    local directions turn gradually from one wall's faces to the other's, so the direction links
+    chained runs along both walls; cut across the corners and merged again, they became an
+    ellipse over the crossing (0.55 m wide for 0.20 and 0.28 m walls, 16 free cells deeper than
+    ``free_tol`` inside). Split by the modes of their directions (``_MODES``) the runs follow
+    the walls, the arms of each wall merge across the crossing, and the two pieces are the two
+    walls."""
+    areas, ious = _recorded_cluster_with_and_without(monkeypatch, "_MODES", "random12_x", 12, 0.01,
+                                                     ((3.0, 3.4), (1.3, 1.8)), 2, free_before=False)
+    assert ious[1] > ious[0] + 0.1, ious  # 0.65 -> 0.84
+    assert areas[1] < 0.95 * areas[0], areas  # 0.616 -> 0.552 m^2
+
+
+def test_direction_modes_of_a_bend_and_of_single_shapes():
+    """``_mode_split``: the outline of two walls crossing at 45 degrees (noisy) splits into
+    runs of one wall's direction each; one rectangle's outline (faces and ends share the
+    direction mod 90 degrees) and a circle's (no distinct mode) are not split."""
+    from perception.fit import _directions, _mode_split
+
+    cfg = PerceptionConfig.from_lidar(range_max=1.0, angle_increment=math.radians(1.0), noise_std=0.01)
+    rng = np.random.default_rng(5)
+
+    def outline(shapes, n=600):
+        b = np.concatenate([sq.boundary_points(n) for sq in shapes])
+        keep = np.ones(len(b), bool)
+        for i, sq in enumerate(shapes):  # the visible outline of the union
+            own = np.repeat(np.arange(len(shapes)), n) == i
+            keep &= own | (sq.beta(b) > 0)
+        b = b[keep]
+        b = b[:: max(1, len(b) // 300)]
+        return b + rng.normal(0.0, 0.01, b.shape) * 0.5
+
+    a = Squircle((0.0, 0.0), 1.0, 0.2, math.radians(20.0), 0.95)
+    b = Squircle((0.0, 0.0), 1.0, 0.25, math.radians(65.0), 0.95)
+    for shapes, split in (([a, b], True), ([a], False), ([Squircle((0.0, 0.0), 0.5, 0.5, 0.0, 0.0)], False)):
+        q = outline(shapes)
+        psi, straight = _directions(q, cfg)
+        runs = _mode_split(q, psi, straight, cfg)
+        if not split:
+            assert runs is None, [len(r) for r in runs]
+            continue
+        assert runs is not None and len(runs) >= 4
+        assert sorted(np.concatenate(runs).tolist()) == list(range(len(q)))
+        # the four largest runs (the faces of the four arms; the rounded ends give small runs)
+        # each lie along one wall
+        for r in sorted(runs, key=len)[-4:]:
+            on = sorted(np.mean(np.abs(radial_error(sq, q[r])) < 0.03) for sq in shapes)
+            assert on[1] > 0.85 and on[0] < 0.15, on
+
+
 def test_the_cold_second_opinion_waits_for_the_cluster_to_grow(monkeypatch):
     """A cluster tried cold is tried again only once it has ``_COLD_GROWTH`` times the returns,
     and a cold decomposition taken replaces the cluster's memo (the next warm refit starts from
