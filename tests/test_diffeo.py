@@ -136,14 +136,21 @@ def test_value_tends_to_mu_on_every_boundary(kind, key):
         assert np.all(gap_ratio < 1.0)
 
 
-@pytest.mark.xfail(strict=False, reason=(
+_SLOW_NEAR_MU = {("shared", "office"), ("shared", "cluttered20")} | {("random", s) for s in (0, 2, 3, 4, 7, 8, 9)}
+_NEAR_MU_XFAIL = pytest.mark.xfail(strict=False, reason=(
     "conditioning target beyond the checks of issue 2 (known limitation): next to chained walls the "
     "chain amplifies normal distances "
     "(docs/navigation.md), so the value approaches mu slowly (e.g. 0.94, 0.97, 0.987 at 1e-5, 1e-6, "
     "1e-7 m); the limit itself is checked by test_value_tends_to_mu_on_every_boundary"))
-@pytest.mark.parametrize(("kind", "key"), WORLD_CASES, ids=WORLD_IDS)
+
+
+@pytest.mark.parametrize(("kind", "key"), [pytest.param(*c, id=i, marks=[_NEAR_MU_XFAIL] if c in _SLOW_NEAR_MU else [])
+                                           for c, i in zip(WORLD_CASES, WORLD_IDS)])
 def test_value_near_mu_next_to_every_boundary(kind, key):
-    """``value >= mu (1 - 1e-3)`` at 1e-7 m from every boundary (a conditioning target)."""
+    """``value >= mu (1 - 1e-3)`` at 1e-7 m from every boundary (a conditioning target). An
+    expected failure on the worlds where the chain's conditioning next to chained walls misses it
+    (``_SLOW_NEAR_MU``); a guarantee on the others (``simple``, random seeds 1, 5 and 6, the
+    hanging wall)."""
     nf = _nf(kind, key)
     mu = nf.params.mu
     failures = []
