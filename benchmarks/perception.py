@@ -4,6 +4,7 @@ Run from the repository root::
 
     python -m benchmarks.perception [--quick] [--out benchmarks/results] [--worlds office cluttered20]
                                     [--noise 0.0 0.01] [--goals 24]
+    python -m benchmarks.perception --drives 30-59 [--jobs 2] [--noise 0.0 0.01]
 
 For every world and noise level: a recorded collision-free drive (``perception.evaluation.tour``,
 ``--goals`` straight legs to random free points, a pose every 5 cm, seed 11) is fed scan by
@@ -26,6 +27,16 @@ scan (the simulator's exact 360-beam lidar, with the given range noise) to a fre
 Timing targets (issue 5): median <= 5 ms, 95th percentile <= 20 ms. Results go to
 ``<out>/perception.json`` and ``<out>/perception.md``; the table is printed on stdout, progress
 on stderr. ``--quick`` drives a few legs in ``simple`` only (a smoke test, not a measurement).
+
+``--drives SEEDS`` (``"30-59"``, ``"0-29,60-89"``) instead runs the slow test's drives
+(``tests/test_perception_map.py``: 10 tour legs per random forest world, its seeds and checks)
+through the random worlds ``SEEDS`` at each ``--noise`` level, each in a fresh process
+(``--jobs`` at a time), and reports per noise level the drives whose checks pass (safety,
+robot disc, validity, stability, rotation, accuracy floors), the mean IoU over the groups seen
+all round with its standard error, and the drives below a floor; to ``<out>/perception_drives.json``
+and ``.md``. Single drives are sensitive to any change in the map's rules (their history goes
+another way), so compare changes by these aggregates over many worlds, including worlds the
+change was not developed on (docs/perception.md, "Measured").
 """
 
 from __future__ import annotations
@@ -116,6 +127,82 @@ def run(*, quick: bool = False, worlds: Sequence[str] = WORLDS, noises: Sequence
     }
 
 
+def drive_row(job) -> dict:
+    """One drive of the slow test (``tests.test_perception_map.run``): ``job = (seed, noise)``."""
+    seed, noise = job
+    from tests.test_perception_map import run as test_drive
+
+    world, omap, res, sc, fails, _ = test_drive(f"random{seed}", noise, 10)
+    floor = 0.8 if noise == 0 else 0.7
+    iou = [float(v) for v in sc.iou]
+    rot = float(max(sc.rotation_errors)) if sc.rotation_errors else None
+    row = {"world": f"random{seed}", "seed": seed, "noise_std": noise, "estimates": len(omap), "iou": iou,
+           "iou_floor": floor, "below_floor": [v for v in iou if v < floor], "safety": sc.safety,
+           "robot_covered": sc.robot_covered, "stable_failures": sc.stable_failures,
+           "validity_failures": len(fails), "rotation_max_deg": rot}
+    row["pass"] = {"safety": sc.safety >= TARGETS["safety"][0] and sc.robot_covered == 0,
+                   "validity": not fails, "stability": sc.stable_failures == 0,
+                   "rotation": rot is None or rot <= 5.0, "iou": not row["below_floor"]}
+    return row
+
+
+def run_drives(seeds: Sequence[int], noises: Sequence[float] = (0.0, 0.01), jobs: int = 1, spec: str | None = None) -> dict:
+    """The slow test's drives through random worlds ``seeds`` at each noise level, aggregated."""
+    from benchmarks._common import isolated_map
+
+    def done(job, r):
+        log(f"[bench] {r['world']} noise {r['noise_std']:g}: IoU {[round(v, 3) for v in r['iou']]}"
+            f"{' BELOW FLOOR' if r['below_floor'] else ''}"
+            f"{'' if all(r['pass'].values()) else ' FAILED ' + str([k for k, v in r['pass'].items() if not v])}")
+
+    rows = isolated_map(drive_row, [(s, n) for s in seeds for n in noises], jobs=jobs, done=done)
+    summary = []
+    for n in noises:
+        rs = [r for r in rows if r["noise_std"] == n]
+        ious = np.array([v for r in rs for v in r["iou"]])
+        summary.append({
+            "noise_std": n, "drives": len(rs), "groups": int(ious.size),
+            "all_checks": sum(all(r["pass"].values()) for r in rs),
+            "iou_mean": float(ious.mean()) if ious.size else None,
+            "iou_se": float(ious.std(ddof=1) / np.sqrt(ious.size)) if ious.size > 1 else None,
+            "below_floor": [r["world"] for r in rs if r["below_floor"]],
+            **{k: sum(r["pass"][k] for r in rs) for k in ("safety", "validity", "stability", "rotation", "iou")},
+        })
+    return {"benchmark": "perception_drives", "spec": spec or ",".join(map(str, seeds)), "seeds": list(seeds),
+            "noises": list(noises),
+            "generated": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+            "machine": machine_info(), "summary": summary, "drives": rows}
+
+
+def render_drives(result: dict) -> str:
+    """The drives' summary table (one row per noise level) and the drives below a floor."""
+    seeds = result["seeds"]
+    lines = [
+        "# Perception: the slow test's drives",
+        "",
+        f"Generated {result['generated']} by `python -m benchmarks.perception --drives {result['spec']}`: "
+        f"{len(seeds)} random forest worlds, 10 tour legs each (the drives of tests/test_perception_map.py).",
+        "",
+        "| noise (m) | drives | all checks pass | safety | validity | stability | rotation | IoU floor | groups "
+        "| IoU mean (standard error) | below floor |",
+        "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|",
+    ]
+    for s in result["summary"]:
+        lines.append(
+            f"| {s['noise_std']:g} | {s['drives']} | {s['all_checks']} | {s['safety']} | {s['validity']} "
+            f"| {s['stability']} | {s['rotation']} | {s['iou']} | {s['groups']} "
+            f"| {_f(s['iou_mean'], '.4f')} ({_f(s['iou_se'], '.4f')}) | {', '.join(s['below_floor']) or '-'} |")
+    lines += [
+        "",
+        "Columns safety .. IoU floor: drives passing that check (safety: 99 % of the hit boundary points inside "
+        "the inflated map and the robot never covered; validity: the forest construction accepts the map; "
+        "stability: a repeated scan changes nothing; rotation: isolated rectangles within 5 degrees; IoU floor: "
+        "every group seen all round at 0.8 noise-free, 0.7 noisy).",
+        "",
+    ]
+    return "\n".join(lines)
+
+
 def _f(v, fmt: str) -> str:
     return "-" if v is None else format(v, fmt)
 
@@ -173,7 +260,22 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--worlds", nargs="*", default=list(WORLDS), help="shared worlds to drive through")
     parser.add_argument("--noise", type=float, nargs="*", default=[0.0, 0.01], help="range noise levels (m)")
     parser.add_argument("--goals", type=int, default=None, help=f"legs of the drive (default {FULL['goals']})")
+    parser.add_argument("--drives", default=None, metavar="SEEDS",
+                        help="run the slow test's drives through these random worlds instead ('30-59', '0-29,60-89')")
+    parser.add_argument("--jobs", type=int, default=1, help="processes for --drives")
     args = parser.parse_args(argv)
+    if args.drives is not None:
+        from tests.test_perception_map import _seeds
+
+        try:
+            seeds = _seeds(args.drives)
+        except ValueError:
+            parser.error(f"--drives: expected seeds like '30-59' or '3,7,12', got {args.drives!r}")
+        if not seeds:
+            parser.error("--drives: no seeds")
+        result = run_drives(seeds, tuple(args.noise), jobs=args.jobs, spec=args.drives)
+        write_results(args.out, "perception_drives", result, render_drives(result))
+        return 0
     result = run(quick=args.quick, worlds=tuple(args.worlds), noises=tuple(args.noise), goals=args.goals)
     write_results(args.out, "perception", result, render_markdown(result))
     return 0

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import json
 
+import pytest
+
 from benchmarks import perception as bench
 
 
@@ -29,3 +31,28 @@ def test_perception_benchmark_quick_writes_results(tmp_path, capsys):
     printed = capsys.readouterr()
     assert printed.out.strip() == table.strip()
     assert "[bench]" in printed.err
+
+
+def test_perception_benchmark_drives_writes_results(tmp_path, capsys):
+    """``--drives``: the slow test's drive through one random world, aggregated per noise level."""
+    out = tmp_path / "results"
+    assert bench.main(["--drives", "0", "--noise", "0.0", "--out", str(out)]) == 0
+    data = json.loads((out / "perception_drives.json").read_text())
+    assert data["benchmark"] == "perception_drives" and data["seeds"] == [0] and data["spec"] == "0"
+    (row,) = data["drives"]
+    assert row["world"] == "random0" and row["noise_std"] == 0.0 and row["iou"]
+    assert set(row["pass"]) == {"safety", "validity", "stability", "rotation", "iou"}
+    (summ,) = data["summary"]
+    assert summ["drives"] == 1 and summ["groups"] == len(row["iou"])
+    assert summ["iou_mean"] == pytest.approx(sum(row["iou"]) / len(row["iou"]))
+    assert summ["all_checks"] == int(all(row["pass"].values()))
+    table = (out / "perception_drives.md").read_text()
+    assert "--drives 0" in table and "| 0 | 1 |" in table
+    assert capsys.readouterr().out.strip() == table.strip()
+
+
+def test_perception_benchmark_drives_rejects_bad_seeds(capsys):
+    with pytest.raises(SystemExit) as err:
+        bench.main(["--drives", "a-b"])
+    assert err.value.code == 2
+    assert "--drives" in capsys.readouterr().err
