@@ -146,7 +146,8 @@ def drive_row(job) -> dict:
     return row
 
 
-def run_drives(seeds: Sequence[int], noises: Sequence[float] = (0.0, 0.01), jobs: int = 1, spec: str | None = None) -> dict:
+def run_drives(seeds: Sequence[int], noises: Sequence[float] = (0.0, 0.01), jobs: int = 1,
+               spec: str | None = None) -> dict:
     """The slow test's drives through random worlds ``seeds`` at each noise level, aggregated."""
     from benchmarks._common import isolated_map
 

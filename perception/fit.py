@@ -789,7 +789,8 @@ _MODES = True  # a run that bends is first split by the modes of its directions 
 _MODE_VALLEY = 0.5  # two direction modes are distinct when the density between them falls below this share
 
 
-def _mode_split(points: np.ndarray, psi: np.ndarray, straight: np.ndarray, cfg: PerceptionConfig) -> list[np.ndarray] | None:
+def _mode_split(points: np.ndarray, psi: np.ndarray, straight: np.ndarray,
+                cfg: PerceptionConfig) -> list[np.ndarray] | None:
     """Split a run whose directions (mod 90 degrees) form two or more distinct modes: index
     sets of the connected runs of straight points within :func:`_direction_tol` of one mode
     (the other points join the run of their nearest point in a large run, as in
@@ -803,7 +804,8 @@ def _mode_split(points: np.ndarray, psi: np.ndarray, straight: np.ndarray, cfg: 
     directions' density (a Gaussian kernel of half the tolerance on the circle of directions
     mod 90 degrees) holding at least ``min_piece`` straight points, at least twice the
     tolerance apart, with the density along one of the arcs between them below
-    ``_MODE_VALLEY`` times the lower peak: the faces and ends of one rectangle share a mode, a curved wall has none distinct."""
+    ``_MODE_VALLEY`` times the lower peak: the faces and ends of one rectangle share a mode, a
+    curved wall has none distinct."""
     from scipy.spatial import cKDTree
 
     tol = _direction_tol(cfg)
@@ -882,7 +884,8 @@ def _directions(points: np.ndarray, cfg: PerceptionConfig, tree=None) -> tuple[n
     return psi, straight
 
 
-def _labelled_runs(points: np.ndarray, pairs: np.ndarray, straight: np.ndarray, cfg: PerceptionConfig) -> list[np.ndarray]:
+def _labelled_runs(points: np.ndarray, pairs: np.ndarray, straight: np.ndarray,
+                   cfg: PerceptionConfig) -> list[np.ndarray]:
     """The connected runs of straight points linked by ``pairs``; corner points and runs of
     fewer than ``min_piece`` points join the run of their nearest point in a large run."""
     from scipy.spatial import cKDTree

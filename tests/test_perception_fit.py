@@ -480,7 +480,8 @@ def test_a_warm_decomposition_over_free_space_gets_a_better_cold_one(monkeypatch
     d = np.load(Path(__file__).parent / "data" / "random24_cross.npz")
     cfg = PerceptionConfig.from_lidar(range_max=1.0, angle_increment=math.radians(1.0), noise_std=0.01)
     init = [Squircle((a[0], a[1]), *a[2:]) for a in d["init"]]
-    truth = [o for o in random_forest_world(24, gap=0.3).obstacles if 1.5 < o.center[0] < 2.0 and 1.2 < o.center[1] < 1.45]
+    truth = [o for o in random_forest_world(24, gap=0.3).obstacles
+             if 1.5 < o.center[0] < 2.0 and 1.2 < o.center[1] < 1.45]
     assert len(truth) == 2
     lo, hi = d["q"].min(axis=0) - 0.2, d["q"].max(axis=0) + 0.2
     out = []
