@@ -1208,9 +1208,7 @@ def _tighten_pass(q, vw, fr, fits: list[Fit], cfg: PerceptionConfig, grow: float
         if not covered.any() or len(keep) < cfg.min_piece:
             continue
         f = _fit_piece(q, vw, fr, keep, cfg, init, cache)
-        if not _explains(f, fr, cfg, free=False) or f.squircle.area > _TIGHTEN_AREA * g.squircle.area:
-            continue
-        if _deep(f.squircle, fr, cfg):
+        if not _clean(f, fr, cfg) or f.squircle.area > _TIGHTEN_AREA * g.squircle.area:
             continue
         if float(radial_error(g.squircle, f.squircle.boundary_points(64)).max()) > cfg.inside_tol:
             continue  # not within the old piece: it could overlap others once inflated
@@ -1327,10 +1325,10 @@ def _extend(q, vw, fr, fits: list[Fit], cfg: PerceptionConfig, grow: float, init
 _EXTEND_BACK = True  # _extend's second step: the clean donor takes back its end
 
 
-def _clean(f: Fit, fr, cfg: PerceptionConfig) -> bool:
-    """``f`` explains its returns (the criterion, by its recorded errors) and holds no free
-    cell deeper than ``free_tol``."""
-    return _explains(f, fr, cfg, free=False) and not _deep(f.squircle, fr, cfg)
+def _clean(f: Fit, fr, cfg: PerceptionConfig, scale: float = 1.0) -> bool:
+    """``f`` explains its returns (the criterion scaled by ``scale``, by its recorded errors)
+    and holds no free cell deeper than ``free_tol``."""
+    return _explains(f, fr, cfg, free=False, scale=scale) and not _deep(f.squircle, fr, cfg)
 
 
 def _band_beyond(q: np.ndarray, b: Fit, g: Fit) -> np.ndarray | None:
@@ -1380,7 +1378,7 @@ def _shrink(q, vw, fr, fits: list[Fit], cyc, adj, errs, cfg: PerceptionConfig, g
         if len(keep) < cfg.min_piece or len(keep) == len(idx):
             continue
         f = _fit_piece(q, vw, fr, keep, cfg, init, cache)
-        if not _explains(f, fr, cfg, free=False) or _deep(f.squircle, fr, cfg):
+        if not _clean(f, fr, cfg):
             continue
         nb = [b for b in cyc if b != a and b in adj[a]]
         if all(_overlap(f.squircle, fits[b].squircle, grow) for b in nb):
@@ -1753,7 +1751,7 @@ def _local_refit(q, vw, fr, cfg: PerceptionConfig, grow: float, init, cache: dic
             fits.append(Fit(sq, rms, closed, idx, p95))
             continue
         f = _fit_piece(q, vw, fr, idx, cfg, init, cache)
-        if not (f.rms <= _LOCAL_TOL * cfg.split_tol and f.p95 <= 3 * _LOCAL_TOL * cfg.split_tol) or _deep(f.squircle, fr, cfg):
+        if not _clean(f, fr, cfg, scale=_LOCAL_TOL):
             return None
         fits.append(f)
         redone.append(k)
@@ -1874,11 +1872,11 @@ def _fit_one(q, vw, free, cfg: PerceptionConfig, init, cache: dict, split: bool)
 _FINAL_CHECK = True
 
 
-def _explains(f: Fit, fr, cfg: PerceptionConfig, free: bool = True) -> bool:
-    """One squircle explains its returns: RMS radial error within ``split_tol``, 95th
-    percentile within ``3 split_tol`` (a NaN error explains nothing) and (with ``free``) fewer
-    than 3 free cells of ``fr`` deeper than ``free_cell`` inside it."""
-    if not (f.rms <= cfg.split_tol and f.p95 <= 3 * cfg.split_tol):
+def _explains(f: Fit, fr, cfg: PerceptionConfig, free: bool = True, scale: float = 1.0) -> bool:
+    """One squircle explains its returns: RMS radial error within ``scale split_tol``, 95th
+    percentile within ``3 scale split_tol`` (a NaN error explains nothing) and (with ``free``)
+    fewer than 3 free cells of ``fr`` deeper than ``free_cell`` inside it."""
+    if not (f.rms <= scale * cfg.split_tol and f.p95 <= 3 * scale * cfg.split_tol):
         return False
     return not free or _deep(f.squircle, fr, cfg, cfg.free_cell) < 3
 
