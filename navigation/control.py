@@ -84,10 +84,13 @@ Choices where the paper is silent or loose, and why:
   the distance from ``q`` to the field's obstacles and workspace boundary
   (:attr:`OrientedField.clearance`; those obstacles are grown by the robot radius; the smaller
   of the two waypoints' values during a switch). By default (``accel_max = 0``,
-  ``brake_share = c = 1``) this is ``v <= d(q) / safety_horizon``: if ``dt <= safety_horizon``
-  (default 0.1 s, the paper's control period), a step moves the robot by at most
-  ``v dt <= d(q)``, so the robot stays in the grown free space and its disc never touches an
-  obstacle, whatever the field does; the cap only acts within ``v_max * safety_horizon`` (5 cm
+  ``brake_share = c = 1``) this is ``v <= (d(q) - m) / safety_horizon`` with the reserve
+  ``m =`` :data:`CONTACT_MARGIN` (10 micrometres): if ``dt <= safety_horizon`` (default 0.1 s,
+  the paper's control period), a step moves the robot by at most ``v dt <= d(q) - m``, so the
+  robot stays in the grown free space at least ``m`` from its boundary and its disc never
+  touches an obstacle, whatever the field does (without the reserve a robot heading straight at
+  a boundary could use its whole clearance and end in contact: measured once, in a 1 cm gap
+  of ``office``, at 1.4 micrometres); the cap only acts within ``v_max * safety_horizon`` (5 cm
   at 0.5 m/s) of a grown boundary. With ``accel_max = a > 0`` the robot, lowering ``v`` by
   ``a * safety_horizon`` per period, stops within the share ``c`` of ``d(q)``; with ``c < 1``
   ``d(q)`` is replaced by the exact clearance below :data:`EXACT_BELOW` and never reaches 0, so
@@ -622,13 +625,17 @@ def _command(theta: float, tg: float, grad: np.ndarray, speed: float, clearance:
 
 
 EXACT_BELOW = 0.005  #: clearance bound (m) below which the safety limit uses the exact clearance
+#: clearance (m) the safety limit keeps in reserve: ten times the simulator's contact tolerance
+#: (1e-6 m, ``service.sim``), so a step that uses the whole allowance ends short of contact
+CONTACT_MARGIN = 1e-5
 
 
 def _speed_limit(clearance: float, cfg: ControllerConfig) -> float:
     """The safety limit on ``v`` for the clearance ``clearance`` of :func:`_clearance`:
-    ``safe_speed(brake_share clearance)``, at most ``v_max`` (``v_max`` with the limit off)."""
+    ``safe_speed(brake_share (clearance - CONTACT_MARGIN))``, at most ``v_max`` (``v_max`` with
+    the limit off)."""
     if cfg.safety_horizon > 0:
-        return min(cfg.v_max, safe_speed(cfg.brake_share * clearance, cfg))
+        return min(cfg.v_max, safe_speed(cfg.brake_share * (clearance - CONTACT_MARGIN), cfg))
     return cfg.v_max
 
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import navigation
-from navigation.control import (ESCAPE_BELOW, ESCAPE_SPEED, EXACT_BELOW, RATE_LIMITED, ControllerConfig, _relaxed, safe_speed,
+from navigation.control import (CONTACT_MARGIN, ESCAPE_BELOW, ESCAPE_SPEED, EXACT_BELOW, RATE_LIMITED, ControllerConfig, _relaxed, safe_speed,
                                 stopping_distance, switch_weight, track, track_waypoints)
 from navigation.errors import NavigationError
 from navigation.oriented import OrientedField, wrap_angle
@@ -256,7 +256,8 @@ def test_clearance_bound_is_a_tight_certified_lower_bound(name):
 
 
 def test_safety_limit_caps_speed_by_clearance():
-    """``v <= clearance / safety_horizon`` at every pose (the exact clearance below ``EXACT_BELOW``,
+    """``v <= (clearance - CONTACT_MARGIN) / safety_horizon`` at every pose (a step ends at least
+    ``CONTACT_MARGIN`` from the grown boundary; the exact clearance below ``EXACT_BELOW``,
     where the certified bound is up to 2.5 mm low); next to a grown boundary the limit is
     what slows the robot (unlimited, eq. 24 would drive 5 cm in one step from 2.8 cm away)."""
     world = shared_world("office")
@@ -273,13 +274,43 @@ def test_safety_limit_caps_speed_by_clearance():
         if c < ESCAPE_BELOW:  # on the grown boundary: at most the escape creep
             assert 0.0 <= cmd.v <= max(c / cfg.safety_horizon, ESCAPE_SPEED) + 1e-12
             continue
-        assert 0.0 <= cmd.v <= c / cfg.safety_horizon + 1e-12
-        assert cmd.v * cfg.safety_horizon <= exact + 1e-9
+        assert 0.0 <= cmd.v <= (c - CONTACT_MARGIN) / cfg.safety_horizon + 1e-12
+        assert cmd.v * cfg.safety_horizon <= exact - CONTACT_MARGIN + 1e-9
     unlimited = ControllerConfig.from_robot(world.robot, safety_horizon=0.0)
     pose = (3.5, 0.13, 1.0)
     assert float(field.clearance(pose[:2])) < 0.03
     assert track(pose, field, unlimited).v == cfg.v_max
     assert track(pose, field, cfg).v <= float(field.clearance(pose[:2])) / cfg.safety_horizon < cfg.v_max
+
+
+def test_a_robot_heading_straight_at_a_boundary_stops_short_of_contact():
+    """Facing the nearest grown boundary head-on from 0.1-50 mm, every step ends at least
+    ``CONTACT_MARGIN`` (10 micrometres, ten times the simulator's contact tolerance) from it:
+    without the reserve a step could use the whole clearance and end in contact."""
+    world = shared_world("simple")
+    r = world.robot.radius
+    cfg = ControllerConfig.from_robot(world.robot)
+    ws = world.workspace.grow(-r)
+    field = OrientedField(navigation.NavigationFunction(world, goal=(3.0, 2.0), inflation=r), heading=0.0)
+    # the grown workspace boundary's lowest point, approached head-on from above (heading -pi/2)
+    x0 = float(ws.center[0])
+    y_wall = float(ws.center[1]) - ws.height / 2.0
+    for gap in (1e-4, 1e-3, 0.005, 0.02, 0.05):
+        q = np.array([x0, y_wall + gap])
+        assert field.clearance.exact(q) == pytest.approx(gap, abs=1e-9)  # the wall is the nearest boundary
+        cmd = _facing_field_command(q, field, cfg, -np.pi / 2)
+        assert cmd.v > 0.0 or gap <= CONTACT_MARGIN
+        assert cmd.v * cfg.safety_horizon <= field.clearance.exact(q) - CONTACT_MARGIN + 1e-12
+
+
+def _facing_field_command(q, field, cfg, heading):
+    """``track`` at ``q`` with the safety limit acting on ``heading`` as if the field pointed
+    there: the field's own direction is replaced by ``heading`` (a stand-in for a direction that
+    folds towards the boundary)."""
+    from navigation.control import _clearance, _command
+
+    c = _clearance(q, (field,), cfg)
+    return _command(heading, heading, np.zeros(2), 1.0, c, cfg)
 
 
 def test_safe_speed_is_the_inverse_of_the_stopping_distance():
@@ -318,7 +349,8 @@ def test_rate_limit_bounds_the_change_from_the_previous_command():
         pv, pw, dt = rng.uniform(0, cfg.v_max), rng.uniform(-cfg.omega_max, cfg.omega_max), rng.uniform(0, 0.2)
         cmd = track(pose, field, cfg, previous=(pv, pw, dt))
         d = float(field.clearance(s, 1.0))
-        limit = safe_speed(cfg.brake_share * max(d, field.clearance.exact(s) - 1e-9 if d < 0.005 else d), cfg)
+        c = max(d, field.clearance.exact(s) - 1e-9) if d < 0.005 else d
+        limit = safe_speed(cfg.brake_share * (c - CONTACT_MARGIN), cfg)
         assert 0.0 <= cmd.v <= min(cfg.v_max, limit) + 1e-12
         assert abs(cmd.v - pv) <= cfg.accel_max * dt + 1e-12 or cmd.v == pytest.approx(limit) or cmd.v == 0.0
         assert abs(cmd.omega - pw) <= cfg.alpha_max * dt + 1e-12 and abs(cmd.omega) <= cfg.omega_max + 1e-12
