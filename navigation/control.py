@@ -124,17 +124,21 @@ Choices where the paper is silent or loose, and why:
   where the flow at 1-3 cm can even point into the wall with the opposite tangential sense to the
   trench's. A robot there is held at 0-30 mm/s by the heading gate and the safety limit and
   times out: that was almost every failure of ``benchmarks.control`` (docs/control.md).
-  Within ``2 D`` of a grown boundary the tracked direction of (24) is therefore changed, in
-  three steps, each with its exact gradient (:func:`_standoff`, :func:`_approach_limit`):
+  Within ``R D`` of a grown boundary (``R = standoff_reach``, 2 by default) the tracked
+  direction of (24) is therefore changed, in three steps, each with its exact gradient
+  (:func:`_standoff`, :func:`_pull`, :func:`_approach_limit`):
 
-  1. *wall flow*: ``theta_gamma`` is blended (weight ``smoothstep((2 D - delta) / D)``, 1
-     within ``D``) into the push-forward direction read at ``q_w = q - (delta - 1 mm) nu``, the
+  1. *wall flow*: ``theta_gamma`` is blended (weight ``w = smoothstep((R D - delta) / ((R - 1)
+     D))``, 1 within ``D``) into the push-forward direction read at ``q_w = q - (delta - 1 mm) nu``, the
      direction in which the trench's integral curves run along the nearest boundary
      (``delta``, ``nu``: first-order distance and normal from that boundary's ``beta``,
      :meth:`OrientedField.boundary_frame`); with ``standoff_gate = g > 0`` only where
      ``theta_gamma`` does not already lead away from that boundary (factor
      ``smoothstep(1 - (u . nu) / g)``, ``u`` the unit vector of ``theta_gamma``; default off, it
-     did not help on ``office``, see docs/control.md);
+     did not help on ``office``, see docs/control.md); with ``standoff_pull = k > 0`` the
+     blend ``f`` is then *pulled in* beyond ``D``, ``f - k w ((delta - D) / D) nu``, so that a
+     robot following the wall round a convex corner stays near ``D`` instead of leaving the
+     band along the tangent (the crawl guard's engaged mode: ``k = 1``, ``R = 4``);
   2. *push out*: within ``D`` the result ``b`` gets an outward component,
      ``u = b + W max(0, s - b . n) n`` (``s = standoff_push = 0.5``, ``W``, ``n``: band weight and
      weighted normal of the boundaries within ``D``), so the robot backs off to about ``D`` and
@@ -149,7 +153,7 @@ Choices where the paper is silent or loose, and why:
   Steps 1-2 only change the direction and step 3 only lowers ``v``; the safety limit is applied
   as before, so one step still moves the robot by at most the certified clearance. ``D`` is
   reduced to a quarter of the goal's clearance, so the goal is never inside the band. What is
-  given up: within ``2 D`` of a boundary ``theta_gamma`` is no longer the direction of a field
+  given up: within ``R D`` of a boundary ``theta_gamma`` is no longer the direction of a field
   that descends ``phi_ONF`` at ``q`` (the wall flow descends it at ``q_w``), so convergence
   there rests on measurements, not on Lemma 3. Measured (docs/control.md, "Stand-off"): it
   removes the trench time-outs on the five worst random worlds (114 to 148 of 150 runs
@@ -175,7 +179,7 @@ A controller step is a pure function of the pose and the waypoint fields: one fi
 evaluation (two with a following waypoint), about a millisecond at 20 obstacles. With the
 stand-off, each field's grown boundaries are also evaluated once per step
 (:meth:`OrientedField.boundary_scan` at the largest of the three reaches, :func:`_band`), and
-within ``2 D`` of a boundary the field once more at the wall-flow foot point.
+within ``R D`` of a boundary the field once more at the wall-flow foot point.
 """
 
 from __future__ import annotations
@@ -225,13 +229,21 @@ class ControllerConfig:
         direction is blended into the gradient direction (smoothstep in the certified clearance).
     standoff : float
         ``D`` (m) of the stand-off from grown boundaries (see the module doc; 0, off; 0.03 is
-        the measured setting): wall flow within ``2 D``, pushed out within ``D``, approach
+        the measured setting): wall flow within ``standoff_reach D``, pushed out within ``D``, approach
         limited to ``D / 3``.
     standoff_push : float
         Outward component ``s`` of the tracked direction within the stand-off (0.5).
     standoff_gate : float
         If > 0, the wall flow is used only where the tracked direction's component along the
         nearest boundary's normal is below this (0: wherever the band applies).
+    standoff_reach : float
+        The wall flow's weight falls from 1 at ``D`` to 0 at ``standoff_reach D`` (2.0; must be
+        above 1; the crawl guard's engaged mode uses 4.0).
+    standoff_pull : float
+        ``k`` of the pull towards the stand-off distance between ``D`` and ``standoff_reach D`` (0, off; the
+        crawl guard of :class:`~navigation.tracker.Tracker` engages it with 1.0): the wall
+        flow ``f`` becomes ``f - k w ((delta - D) / D) nu``, so a robot following a wall stays
+        near ``D`` round convex corners instead of leaving the band along the tangent.
     accel_max : float
         ``a`` (m/s^2; 0, off): the deceleration the safety limit assumes (the robot must be able
         to stop within the certified clearance, decelerating by ``a`` per second; see
@@ -265,6 +277,8 @@ class ControllerConfig:
     standoff: float = 0.0
     standoff_push: float = 0.5
     standoff_gate: float = 0.0
+    standoff_pull: float = 0.0
+    standoff_reach: float = 2.0
     accel_max: float = 0.0
     alpha_max: float = 0.0
     brake_share: float = 1.0
@@ -273,7 +287,9 @@ class ControllerConfig:
     def __post_init__(self):
         check_numbers(self, ("k_v", "k_omega", "v_max", "omega_max", "k_switch", "switch_margin"), positive=True)
         check_numbers(self, ("safety_horizon", "boundary_blend", "standoff", "standoff_push", "standoff_gate",
-                             "accel_max", "alpha_max", "relax"), positive=False)
+                             "standoff_pull", "accel_max", "alpha_max", "relax"), positive=False)
+        if not self.standoff_reach > 1.0:
+            raise NavigationError(f"ControllerConfig.standoff_reach must be > 1, got {self.standoff_reach!r}")
         if not self.brake_share <= 1.0 or not self.brake_share > 0.0:
             raise NavigationError(f"ControllerConfig.brake_share must be in (0, 1], got {self.brake_share!r}")
 
@@ -396,7 +412,7 @@ class _Band(NamedTuple):
     """The stand-off's view of one field's grown boundaries at one pose (:func:`_band`)."""
 
     D: float  #: stand-off distance for this field, ``min(cfg.standoff, goal clearance / 4)``
-    wall: BoundaryFrame | None  #: reach ``2 D``: wall flow (:func:`_standoff`)
+    wall: BoundaryFrame | None  #: reach ``standoff_reach D``: wall flow (:func:`_standoff`)
     push: BoundaryFrame | None  #: reach ``D``: push out, and the approach limit's normal
     approach: BoundaryFrame | None  #: reach ``D / 3 + v_max h``: approach limit (:func:`_approach_limit`)
 
@@ -411,7 +427,7 @@ def _band(q: np.ndarray, field: OrientedField, cfg: ControllerConfig) -> "_Band 
     D = min(cfg.standoff, 0.25 * field.goal_clearance)
     if not D > 0:
         return None
-    reaches = (2.0 * D, D, D / 3.0 + cfg.v_max * _horizon(cfg))
+    reaches = (cfg.standoff_reach * D, D, D / 3.0 + cfg.v_max * _horizon(cfg))
     scan = field.boundary_scan(q, max(reaches))
     if scan is None:  # no boundary within the largest reach, or q not in free space
         return _Band(D, None, None, None)
@@ -423,17 +439,20 @@ def _standoff(q: np.ndarray, tg: float, grad: np.ndarray, field: OrientedField, 
               band: _Band):
     """Stand-off from grown boundaries (see the module doc), with its exact gradient.
 
-    Within ``2 D`` of a grown boundary (``D = min(cfg.standoff, goal clearance / 4)``) the tracked
-    direction ``f`` is blended (weight 1 within ``D``) into the *wall flow* ``f_w``, the
-    push-forward direction at the point ``q_w = q - (delta - WALL_OFFSET) nu`` next to the
-    nearest boundary; within ``D`` the result ``b`` is pushed out, ``u = b + W max(0, s - b.n) n``
+    Within ``R D`` (``R = cfg.standoff_reach``) of a grown boundary (``D = min(cfg.standoff,
+    goal clearance / 4)``) the tracked direction ``f`` is blended (weight 1 within ``D``) into
+    the *wall flow* ``f_w``, the push-forward direction at the point
+    ``q_w = q - (delta - WALL_OFFSET) nu`` next to the nearest boundary (pulled in beyond ``D``
+    with ``cfg.standoff_pull``, :func:`_pull`); within ``D`` the result ``b`` is pushed out,
+    ``u = b + W max(0, s - b.n) n``
     (``n``, ``W``: weighted normal and band weight of the boundaries within ``D``,
     ``s = cfg.standoff_push``); the frames come from ``band`` (:func:`_band`)."""
     D, fr = band.D, band.wall
     if fr is None:
         return tg, grad
-    wp, dwp = _smoothstep((2.0 * D - fr.distance) / D)
-    dwp = dwp * (-1.0 / D) * fr.distance_gradient
+    width = (cfg.standoff_reach - 1.0) * D
+    wp, dwp = _smoothstep((cfg.standoff_reach * D - fr.distance) / width)
+    dwp = dwp * (-1.0 / width) * fr.distance_gradient
     if wp > 0.0 and cfg.standoff_gate:
         # only where the tracked direction does not already lead away from the nearest boundary
         nu = fr.normal
@@ -453,6 +472,8 @@ def _standoff(q: np.ndarray, tg: float, grad: np.ndarray, field: OrientedField, 
             out = _unit_blend(tg, grad, float(ew.flow_angle), gw, wp, dwp)
             if out is not None:
                 tg, grad = out
+                if cfg.standoff_pull > 0.0 and fr.distance > D:
+                    tg, grad = _pull(tg, grad, fr, D, wp, dwp, cfg.standoff_pull)
     fo = band.push
     if fo is None:
         return tg, grad
@@ -466,6 +487,29 @@ def _standoff(q: np.ndarray, tg: float, grad: np.ndarray, field: OrientedField, 
     u = f + w * a * n
     grad_a = -(float(pf @ n) * grad + float(pn @ f) * gn)
     du = np.outer(pf, grad) + np.outer(a * n, gw) + w * np.outer(n, grad_a) + w * a * np.outer(pn, gn)
+    u2 = float(u @ u)
+    if not u2 > 1e-12:
+        return tg, grad
+    return math.atan2(u[1], u[0]), (u[0] * du[1] - u[1] * du[0]) / u2
+
+
+def _pull(tg: float, grad: np.ndarray, fr: BoundaryFrame, D: float, wp: float, dwp: np.ndarray, k: float):
+    """Pull towards the stand-off distance between ``D`` and ``R D`` (``ControllerConfig.standoff_pull
+    = k``): ``u = f - k wp ((delta - D) / D) nu`` with ``f`` the unit vector of ``tg``, ``wp`` the
+    wall-flow weight and ``nu``, ``delta`` the nearest boundary's normal and first-order distance;
+    direction of ``u`` and its exact gradient. Without it a robot following a wall round a convex
+    corner drives along the tangent out of the band, where the unmodified direction takes it back
+    into the trench it was leaving (docs/control.md, "Pull-in")."""
+    e = (fr.distance - D) / D
+    c = k * wp * e
+    if not c > 0.0:
+        return tg, grad
+    f = np.array([math.cos(tg), math.sin(tg)])
+    pf = np.array([-f[1], f[0]])
+    nu = fr.normal
+    grad_c = k * (dwp * e + wp * fr.distance_gradient / D)
+    u = f - c * nu
+    du = np.outer(pf, grad) - np.outer(nu, grad_c) - c * fr.normal_jacobian
     u2 = float(u @ u)
     if not u2 > 1e-12:
         return tg, grad

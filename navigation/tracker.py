@@ -17,6 +17,13 @@ with either the caller's configuration or the same with ``standoff`` set, so eve
 property of the controller holds in both modes (the safety limit is applied either way; the
 stand-off only changes the tracked direction near boundaries and lowers ``v``).
 
+While engaged the stand-off also *pulls* the robot back towards the wall between ``D`` and
+``reach D`` (``ControllerConfig.standoff_pull``, ``standoff_reach``; the wall flow's weight falls
+from 1 at ``D`` to 0 at ``reach D``): the trench along a chained wall often runs round the
+wall's convex corner, and a robot following it at ``D`` without the pull drove along the
+tangent out of the narrow band, where the unmodified field took it back into the junction it
+had crawled out of, round and round until the timeout (docs/control.md, "Pull-in").
+
 Not in the paper: paper 001 tracks the field with eq. 24 alone. This is a supervisor around it
 for the conditioning problem of the transformation (issue 2, docs/navigation.md "Conditioning
 next to chained walls").
@@ -57,6 +64,11 @@ class CrawlConfig:
         history starts over, so a pause is not taken for a crawl.
     standoff : float
         ``ControllerConfig.standoff`` used while engaged (0.03 m, the measured setting).
+    pull : float
+        ``ControllerConfig.standoff_pull`` used while engaged (1.0; 0 turns the pull off).
+    reach : float
+        ``ControllerConfig.standoff_reach`` used while engaged (4.0: the wall flow's weight falls
+        from 1 at ``standoff`` to 0 at four times it).
     """
 
     window: float = 3.0
@@ -65,9 +77,14 @@ class CrawlConfig:
     hold: float = 10.0
     max_gap: float = 0.5
     standoff: float = 0.03
+    pull: float = 1.0
+    reach: float = 4.0
 
     def __post_init__(self):
         check_numbers(self, ("window", "min_progress", "goal_radius", "hold", "max_gap", "standoff"), positive=True)
+        check_numbers(self, ("pull",), positive=False)
+        if not self.reach > 1.0:
+            raise NavigationError(f"CrawlConfig.reach must be > 1, got {self.reach!r}")
 
 
 class CrawlGuard:
@@ -145,7 +162,8 @@ class Tracker:
                  max_gap: float = 0.5):
         self.config = config
         self.guard = CrawlGuard(crawl) if crawl is not None else None
-        self._engaged_config = replace(config, standoff=crawl.standoff) if crawl is not None else config
+        self._engaged_config = (replace(config, standoff=crawl.standoff, standoff_pull=crawl.pull,
+                                        standoff_reach=crawl.reach) if crawl is not None else config)
         self._last = False
         self.max_gap = float(max_gap)
         self._sent: tuple[float, float, float] | None = None  # (t, v, omega) of the last command

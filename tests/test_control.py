@@ -393,10 +393,12 @@ def _random4_field():
     return world, field
 
 
-@pytest.mark.parametrize("push_forward", [False, True], ids=["gradient", "push_forward"])
-def test_standoff_direction_gradient_matches_finite_differences(push_forward):
-    """Within ``2 standoff`` of a grown boundary the tracked direction (wall flow read next to
-    the boundary, blended and pushed out) has the exact gradient the feed-forward uses: checked
+@pytest.mark.parametrize("push_forward,pull", [(False, 0.0), (True, 0.0), (False, 1.0)],
+                         ids=["gradient", "push_forward", "gradient_pull"])
+def test_standoff_direction_gradient_matches_finite_differences(push_forward, pull):
+    """Within ``2 standoff`` of a grown boundary (``standoff_reach`` times it with the pull of the
+    crawl guard's engaged mode) the tracked direction (wall flow read next to the boundary,
+    blended, pulled in and pushed out) has the exact gradient the feed-forward uses: checked
     wherever the central differences have converged (steps 1e-6 and 1e-7 agree; the underlying
     directions fold on sub-micrometre scales in places). With ``push_forward`` the points within
     ``boundary_blend`` are left out: there the base direction's blend weight is treated as locally
@@ -404,12 +406,14 @@ def test_standoff_direction_gradient_matches_finite_differences(push_forward):
     from navigation.control import _band, _direction
 
     world, field = _random4_field()
-    cfg = ControllerConfig.from_robot(world.robot, push_forward=push_forward, standoff=STANDOFF)
+    reach = 4.0 if pull else 2.0
+    cfg = ControllerConfig.from_robot(world.robot, push_forward=push_forward, standoff=STANDOFF,
+                                      standoff_pull=pull, standoff_reach=reach)
     rng = np.random.default_rng(9)
     checked = converged = 0
     for q in random_free_points(world, 2500, rng, margin=world.robot.radius + 0.001):
-        c = float(field.clearance(q, 0.07))
-        if not field.evaluate(q).free or c >= 2 * cfg.standoff:
+        c = float(field.clearance(q, reach * STANDOFF + 0.01))
+        if not field.evaluate(q).free or c >= reach * cfg.standoff:
             continue
         if push_forward and c < cfg.boundary_blend:
             continue  # the push-forward's own boundary blend treats its weight as constant

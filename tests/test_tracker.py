@@ -60,7 +60,7 @@ def test_a_pause_or_a_clock_reset_starts_the_history_over():
 
 
 @pytest.mark.parametrize("bad", [{"window": 0.0}, {"hold": -1.0}, {"min_progress": math.nan}, {"standoff": True},
-                                 {"max_gap": math.inf}])
+                                 {"max_gap": math.inf}, {"pull": -1.0}, {"reach": 1.0}, {"reach": math.nan}])
 def test_bad_crawl_config_is_refused(bad):
     with pytest.raises(NavigationError):
         CrawlConfig(**bad)
@@ -85,8 +85,9 @@ def test_tracker_commands_are_the_controllers_with_and_without_the_stand_off():
     goal = random_free_points(world, 1, rng, margin=r + 0.2)[0]
     field = OrientedField(navigation.NavigationFunction(world, goal=goal, inflation=r), heading=0.3)
     plain = Tracker(cfg, crawl=None)
-    guarded = Tracker(cfg, CrawlConfig(window=1.0, hold=2.0, standoff=0.04))
-    on_cfg = replace(cfg, standoff=0.04)
+    crawl = CrawlConfig(window=1.0, hold=2.0, standoff=0.04)
+    guarded = Tracker(cfg, crawl)
+    on_cfg = replace(cfg, standoff=0.04, standoff_pull=crawl.pull, standoff_reach=crawl.reach)
     q = random_free_points(world, 1, rng, margin=r + 0.05)[0]
     seen = set()
     for k in range(40):  # the robot stands still at q: the guard engages after 1 s
@@ -110,6 +111,33 @@ def test_the_guard_rescues_a_run_that_crawls_with_the_plain_controller():
     cfg = ControllerConfig.from_robot(world.robot)
     reached, _ = run_closed_loop(world, field, start, cfg, max_steps=1200)
     assert not reached  # the failure the guard is for (if the field improves, pick another case)
+    tracker = Tracker(cfg)
+    reached, sim = run_closed_loop(world, field, start, cfg, max_steps=1200, tracker=tracker)
+    assert reached, f"ended at {sim.pose} after {sim.time:.1f} s"
+    assert tracker.guard.engagements >= 1
+    assert sim.metrics.min_clearance > 0.0 and not sim.metrics.collisions
+
+
+def test_the_pull_keeps_the_engaged_robot_on_the_wall_round_a_convex_corner():
+    """random17 (``gap=0.3``), start 2 of the slow closed-loop test's sampling: the trench runs
+    from a shallow junction along the chained wall and round its convex corner. Without the
+    pull (``CrawlConfig(pull=0, reach=2)``, the guard before it) the engaged robot follows the
+    wall at 2.5 cm to the corner, drives along the tangent out of the 6 cm band, and the
+    unmodified field takes it back to the junction, round and round until the 120 s timeout;
+    with the default pull it stays on the wall round the corner and reaches the goal pose."""
+    world = random_forest_world(17, gap=0.3)
+    r = world.robot.radius
+    rng = np.random.default_rng(7)  # tests/test_closed_loop.py's sampling
+    goal = random_free_points(world, 1, rng, margin=r + 0.2)[0]
+    field = OrientedField(navigation.NavigationFunction(world, goal=goal, inflation=r),
+                          heading=rng.uniform(-math.pi, math.pi))
+    s = random_free_points(world, 100, rng, margin=r + 0.05)[2]
+    headings = rng.uniform(-math.pi, math.pi, size=3)  # drawn one by one after the points
+    start = (float(s[0]), float(s[1]), float(headings[2]))
+    cfg = ControllerConfig.from_robot(world.robot)
+    reached, _ = run_closed_loop(world, field, start, cfg, max_steps=1200,
+                                 tracker=Tracker(cfg, CrawlConfig(pull=0.0, reach=2.0)))
+    assert not reached  # the failure the pull is for (if the field improves, pick another case)
     tracker = Tracker(cfg)
     reached, sim = run_closed_loop(world, field, start, cfg, max_steps=1200, tracker=tracker)
     assert reached, f"ended at {sim.pose} after {sim.time:.1f} s"
