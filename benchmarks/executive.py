@@ -31,7 +31,8 @@ completed runs, collisions, and the smallest / median / largest distance ratio, 
 the share of runs within 1.25 x their tour. ``--set NAME=VALUE`` (repeatable; VALUE in JSON)
 overrides an ``ExecutiveConfig`` field for every run, to compare settings on the same worlds
 (``controller`` takes a JSON object of ``navigation.ControllerConfig`` fields changed from the
-executive's default controller, e.g. ``--set 'controller={"accel_max": 1.0}'``, or ``null``);
+executive's default controller, e.g. ``--set 'controller={"accel_max": 1.0}'``, or ``null``;
+``crawl_guard`` a JSON object of ``navigation.CrawlConfig`` fields, ``{}`` for its defaults);
 ``--jobs N`` runs the jittered missions in N processes (the main table stays sequential: its
 tick times are measured one mission at a time). Every mission runs in a process of its own,
 forked from the prepared benchmark process (:func:`benchmarks._common.isolated_map`), so none
@@ -263,6 +264,14 @@ def _overrides(pairs: Sequence[str]) -> dict:
                 out[name] = dataclasses.replace(base, **out[name])
             except Exception as err:  # unknown field (TypeError) or the config's validation
                 raise SystemExit(f"python -m benchmarks.executive: --set controller={value}: {err}") from None
+        if name == "crawl_guard" and isinstance(out[name], dict):
+            # a JSON object: navigation.CrawlConfig fields changed from its defaults ({} for the defaults)
+            from navigation import CrawlConfig
+
+            try:
+                out[name] = CrawlConfig(**out[name])
+            except Exception as err:
+                raise SystemExit(f"python -m benchmarks.executive: --set crawl_guard={value}: {err}") from None
     return out
 
 

@@ -114,3 +114,21 @@ def test_executive_benchmark_controller_override():
         exe_bench._overrides(['controller={"no_such_gain": 1}'])
     with pytest.raises(SystemExit, match="accel_max"):
         exe_bench._overrides(['controller={"accel_max": -1}'])
+
+
+def test_executive_benchmark_crawl_guard_override():
+    """``--set crawl_guard={...}`` turns the executive's crawl guard on with the named
+    ``navigation.CrawlConfig`` fields changed (``{}``: its defaults); ``null`` leaves it off;
+    a bad field is a one-line error."""
+    import pytest
+
+    from benchmarks import executive as exe_bench
+    from navigation import CrawlConfig
+
+    assert exe_bench._overrides(["crawl_guard={}"]) == {"crawl_guard": CrawlConfig()}
+    assert exe_bench._overrides(['crawl_guard={"pull": 0.0}'])["crawl_guard"] == CrawlConfig(pull=0.0)
+    assert exe_bench._overrides(["crawl_guard=null"]) == {"crawl_guard": None}
+    with pytest.raises(SystemExit, match="crawl_guard"):
+        exe_bench._overrides(['crawl_guard={"reach": 0.5}'])
+    with pytest.raises(SystemExit, match="crawl_guard"):
+        exe_bench._overrides(['crawl_guard={"no_such_field": 1}'])
