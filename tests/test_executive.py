@@ -415,12 +415,13 @@ def test_detour_ratio_is_validated():
         ExecutiveConfig(seen_share=1.5)
 
 
-def test_crawl_guard_option_is_validated_and_drives_a_mission():
+def test_crawl_guard_option_is_validated_on_by_default_and_can_be_turned_off():
     from navigation import CrawlConfig
 
     with pytest.raises(TampError, match="crawl_guard"):
         ExecutiveConfig(crawl_guard=0.03)
-    r = run_mission(_gap_world(), max_time=200, config=ExecutiveConfig(crawl_guard=CrawlConfig()))
+    assert ExecutiveConfig().crawl_guard == CrawlConfig()
+    r = run_mission(_gap_world(), max_time=200, config=ExecutiveConfig(crawl_guard=None))
     assert r["completed"] and r["collisions"] == 0 and r["bad_commands"] == 0
 
 
