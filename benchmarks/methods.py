@@ -14,7 +14,8 @@ between two copies of the surrounding machinery:
            to the region (arrival heading along the tree's last segment): no intermediate
            waypoints, i.e. no second-layer trees in execution.
 ``NF``     :class:`NFExecutive`: the plain navigation function (negated gradient of
-           ``phi_NF``, no dipole, no heading) tracked by the eq. 24 unicycle controller; the
+           ``phi_NF``, no dipole, no heading) tracked by the eq. 24 unicycle controller
+           (without the crawl guard, which the other methods' executive has); the
            plan is the initial one on straight-line costs, never re-costed (no adaptation);
            the potential is rebuilt on every map change (it must contain what was seen).
 ``RRT*``   :class:`RRTStarExecutive`: OMPL's ``RRTstar`` (``ompl`` Python bindings) on the
@@ -127,10 +128,11 @@ class NFExecutive(_FixedPlanMixin, Executive):
     """Plain navigation function to each region of the initial plan (see the module doc)."""
 
     def __init__(self, world, task=None, *, known: bool = False, config: ExecutiveConfig | None = None):
-        # the negated gradient itself is tracked (:class:`PlainField` has no push-forward flow)
+        # the negated gradient itself is tracked (:class:`PlainField` has no push-forward flow),
+        # by eq. 24 alone: no crawl guard (its stand-off reads the push-forward flow next to walls)
         cfg = config or ExecutiveConfig()
         ctl = replace(cfg.controller or ControllerConfig(), push_forward=False)
-        super().__init__(world, task, known=known, config=replace(cfg, controller=ctl))
+        super().__init__(world, task, known=known, config=replace(cfg, controller=ctl, crawl_guard=None))
 
     def _set_leg(self, p, target) -> None:
         c = self.world.regions[target].center

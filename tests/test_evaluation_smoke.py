@@ -28,6 +28,7 @@ def test_quick_run_writes_report_and_ht_completes(tmp_path, capsys):
         ht = s["runs"]["HT"]
         assert ht["completed"] and ht["collisions"] == 0 and ht["bad_commands"] == 0
         assert s["runs"]["oracle"]["distance"] > 0 and ht["ratio"] > 0
+        assert "error" not in s["runs"]["NF"], s["runs"]["NF"]["error"]  # a baseline that raised
         assert "trajectory" not in ht  # trajectories go to the figures, not the JSON
         assert "waypoints" not in ht and "replanned" not in ht
         src = ht["chatter_sources"]
