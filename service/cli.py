@@ -83,6 +83,9 @@ def _common(p: argparse.ArgumentParser, *, default_world: str | None) -> None:
     p.add_argument("--alpha-max", type=_positive, default=None, metavar="B",
                    help="the robot's turn-rate acceleration limit (rad/s^2) in the rate-limited mode "
                         "(with --accel-max unset it is 1 m/s^2)")
+    p.add_argument("--no-crawl-guard", action="store_true",
+                   help="track with eq. 24 alone: never engage the stand-off that walks a crawling robot "
+                        "along the wall (docs/control.md 'Crawl guard', 'Pull-in')")
     p.add_argument("-v", "--verbose", action="store_true", help="log every warning and state change")
 
 
@@ -120,15 +123,19 @@ def _free_port() -> int:
 def _executive_config(a):
     """The executive's configuration from the options: the controller's rate-limited mode when
     ``--accel-max`` or ``--alpha-max`` is given (with the rotated-gradient direction it was
-    measured with, docs/control.md "Rate-limited mode"), else the executive's defaults
-    (``None``: the push-forward direction, docs/executive.md "Tracked direction")."""
-    if a.accel_max is None and a.alpha_max is None:
+    measured with, docs/control.md "Rate-limited mode"), no crawl guard with
+    ``--no-crawl-guard``, else the executive's defaults (``None``: the push-forward direction,
+    docs/executive.md "Tracked direction", with the crawl guard)."""
+    if a.accel_max is None and a.alpha_max is None and not a.no_crawl_guard:
         return None
     from navigation.control import RATE_LIMITED, ControllerConfig
     from tamp.executive import ExecutiveConfig
 
-    given = {k: v for k, v in (("accel_max", a.accel_max), ("alpha_max", a.alpha_max)) if v is not None}
-    return ExecutiveConfig(controller=ControllerConfig(**{**RATE_LIMITED, **given}))
+    over = {"crawl_guard": None} if a.no_crawl_guard else {}
+    if a.accel_max is not None or a.alpha_max is not None:
+        given = {k: v for k, v in (("accel_max", a.accel_max), ("alpha_max", a.alpha_max)) if v is not None}
+        over["controller"] = ControllerConfig(**{**RATE_LIMITED, **given})
+    return ExecutiveConfig(**over)
 
 
 def _setup(a):

@@ -33,7 +33,8 @@ def test_help_documents_every_option(capsys):
         assert info.value.code == 0
         out = capsys.readouterr().out
         for opt in ["--world", "--task", "--robot", "--listen", "--connect", "--zenoh-config", "--record",
-                    "--viewer", "--rate", "--duration", "--watchdog", "--accel-max", "--alpha-max", *extra]:
+                    "--viewer", "--rate", "--duration", "--watchdog", "--accel-max", "--alpha-max", "--no-crawl-guard",
+                    *extra]:
             assert opt in out, (sub, opt)
 
 
@@ -46,6 +47,19 @@ def test_acceleration_limits_select_the_rate_limited_controller():
     assert (cfg.accel_max, cfg.alpha_max, cfg.brake_share) == (2.0, 6.0, 0.5)
     cfg = _executive_config(parse(["run", "--world", "simple", "--alpha-max", "3"])).controller
     assert (cfg.accel_max, cfg.alpha_max) == (1.0, 3.0)
+
+
+def test_no_crawl_guard_turns_the_executives_guard_off():
+    from navigation import CrawlConfig
+    from service.cli import _executive_config, build_parser
+    from tamp.executive import ExecutiveConfig
+
+    parse = build_parser().parse_args
+    cfg = _executive_config(parse(["run", "--world", "simple", "--no-crawl-guard"]))
+    assert cfg.crawl_guard is None and cfg.controller == ExecutiveConfig().controller
+    both = _executive_config(parse(["demo", "--no-crawl-guard", "--accel-max", "2"]))
+    assert both.crawl_guard is None and both.controller.accel_max == 2.0
+    assert _executive_config(parse(["demo", "--accel-max", "2"])).crawl_guard == CrawlConfig()
 
 
 @pytest.mark.parametrize("argv, needle", [
