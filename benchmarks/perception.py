@@ -130,19 +130,19 @@ def run(*, quick: bool = False, worlds: Sequence[str] = WORLDS, noises: Sequence
 def drive_row(job) -> dict:
     """One drive of the slow test (``tests.test_perception_map.run``): ``job = (seed, noise)``."""
     seed, noise = job
-    from tests.test_perception_map import run as test_drive
+    from tests.test_perception_map import ROTATION_MAX_DEG, SAFETY_MIN, iou_floor, run as test_drive
 
     world, omap, res, sc, fails, _ = test_drive(f"random{seed}", noise, 10)
-    floor = 0.8 if noise == 0 else 0.7
+    floor = iou_floor(noise)
     iou = [float(v) for v in sc.iou]
     rot = float(max(sc.rotation_errors)) if sc.rotation_errors else None
     row = {"world": f"random{seed}", "seed": seed, "noise_std": noise, "estimates": len(omap), "iou": iou,
            "iou_floor": floor, "below_floor": [v for v in iou if v < floor], "safety": sc.safety,
            "robot_covered": sc.robot_covered, "stable_failures": sc.stable_failures,
            "validity_failures": len(fails), "rotation_max_deg": rot}
-    row["pass"] = {"safety": sc.safety >= TARGETS["safety"][0] and sc.robot_covered == 0,
+    row["pass"] = {"safety": sc.safety >= SAFETY_MIN and sc.robot_covered == 0,
                    "validity": not fails, "stability": sc.stable_failures == 0,
-                   "rotation": rot is None or rot <= 5.0, "iou": not row["below_floor"]}
+                   "rotation": rot is None or rot <= ROTATION_MAX_DEG, "iou": not row["below_floor"]}
     return row
 
 

@@ -92,6 +92,16 @@ def run(name: str, noise: float, goals: int):
     return world, omap, res, score(world, omap, res), fails, checks[0]
 
 
+# the issue's bounds, which benchmarks.perception --drives applies to the same drives
+SAFETY_MIN = 0.99  # share of the hit true boundary points inside the inflated map
+ROTATION_MAX_DEG = 5.0  # rotation error of isolated rectangles seen all round
+
+
+def iou_floor(noise: float) -> float:
+    """IoU every group seen all round must reach: 0.8 noise-free, 0.7 with range noise."""
+    return 0.8 if noise == 0 else 0.7
+
+
 DEFAULT_CASES = [("simple", 0.0, 10), ("simple", 0.01, 10), ("random0", 0.01, 6)]
 SLOW_CASES = ([(w, n, 16) for w in ("simple", "office", "cluttered20") for n in (0.0, 0.01)]
               + [(f"random{s}", n, 10) for s in SLOW_SEEDS for n in (0.0, 0.01)])
@@ -102,7 +112,7 @@ CASES = ([pytest.param(*c, id=f"{c[0]}-noise{c[1]}") for c in DEFAULT_CASES]
 @pytest.mark.parametrize("name, noise, goals", CASES)
 def test_safety(name, noise, goals):
     world, omap, res, sc, _, _ = run(name, noise, goals)
-    assert sc.safety >= 0.99, f"{name}: only {sc.safety:.2%} of the hit boundary points are inside the map"
+    assert sc.safety >= SAFETY_MIN, f"{name}: only {sc.safety:.2%} of the hit boundary points are inside the map"
     assert sc.robot_covered == 0, f"{name}: an inflated estimate covered the robot after {sc.robot_covered} scans"
 
 
@@ -126,10 +136,10 @@ def test_stability(name, noise, goals):
 @pytest.mark.parametrize("name, noise, goals", CASES)
 def test_accuracy(name, noise, goals):
     world, omap, res, sc, _, _ = run(name, noise, goals)
-    floor = 0.8 if noise == 0 else 0.7
+    floor = iou_floor(noise)
     bad = [round(v, 3) for v in sc.iou if v < floor]
     assert not bad, f"{name}: IoU below {floor} for {len(bad)} of {len(sc.iou)} groups seen all round: {bad}"
-    assert all(e <= 5.0 for e in sc.rotation_errors), sc.rotation_errors
+    assert all(e <= ROTATION_MAX_DEG for e in sc.rotation_errors), sc.rotation_errors
 
 
 def test_updates_report_changes():
