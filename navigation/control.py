@@ -329,18 +329,24 @@ def _pose(pose) -> tuple[np.ndarray, float]:
     return p[:2], float(p[2])
 
 
+def _angle_of(u: np.ndarray, du: np.ndarray) -> tuple[float, np.ndarray] | None:
+    """Direction ``atan2(u)`` of a vector ``u`` and its gradient from the Jacobian ``du``
+    (``du[i]`` the gradient of ``u[i]``); ``None`` when ``u`` vanishes."""
+    u2 = float(u @ u)
+    if not u2 > 1e-12:
+        return None
+    return math.atan2(u[1], u[0]), (u[0] * du[1] - u[1] * du[0]) / u2
+
+
 def _unit_blend(t0: float, g0: np.ndarray, t1: float, g1: np.ndarray, w: float, grad_w: np.ndarray):
     """Direction of ``b = (1 - w) u(t0) + w u(t1)`` and its gradient, given the gradients
     ``g0``, ``g1`` of ``t0``, ``t1`` and ``grad_w`` of ``w``; ``None`` when ``b`` vanishes."""
     u0 = np.array([math.cos(t0), math.sin(t0)])
     u1 = np.array([math.cos(t1), math.sin(t1)])
     b = (1.0 - w) * u0 + w * u1
-    nb2 = float(b @ b)
-    if not nb2 > 1e-12:
-        return None
     jb = ((1.0 - w) * np.outer((-u0[1], u0[0]), g0) + w * np.outer((-u1[1], u1[0]), g1)
           + np.outer(u1 - u0, grad_w))
-    return math.atan2(b[1], b[0]), (b[0] * jb[1] - b[1] * jb[0]) / nb2
+    return _angle_of(b, jb)
 
 
 def _direction(q: np.ndarray, field: OrientedField, cfg: ControllerConfig, band: "_Band | None",
@@ -487,10 +493,7 @@ def _standoff(q: np.ndarray, tg: float, grad: np.ndarray, field: OrientedField, 
     u = f + w * a * n
     grad_a = -(float(pf @ n) * grad + float(pn @ f) * gn)
     du = np.outer(pf, grad) + np.outer(a * n, gw) + w * np.outer(n, grad_a) + w * a * np.outer(pn, gn)
-    u2 = float(u @ u)
-    if not u2 > 1e-12:
-        return tg, grad
-    return math.atan2(u[1], u[0]), (u[0] * du[1] - u[1] * du[0]) / u2
+    return _angle_of(u, du) or (tg, grad)
 
 
 def _pull(tg: float, grad: np.ndarray, fr: BoundaryFrame, D: float, wp: float, dwp: np.ndarray, k: float):
@@ -510,10 +513,7 @@ def _pull(tg: float, grad: np.ndarray, fr: BoundaryFrame, D: float, wp: float, d
     grad_c = k * (dwp * e + wp * fr.distance_gradient / D)
     u = f - c * nu
     du = np.outer(pf, grad) - np.outer(nu, grad_c) - c * fr.normal_jacobian
-    u2 = float(u @ u)
-    if not u2 > 1e-12:
-        return tg, grad
-    return math.atan2(u[1], u[0]), (u[0] * du[1] - u[1] * du[0]) / u2
+    return _angle_of(u, du) or (tg, grad)
 
 
 def _blend(q: np.ndarray, current: OrientedField, following: OrientedField, cfg: ControllerConfig, bands,
