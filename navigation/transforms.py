@@ -311,8 +311,11 @@ class SphereToPoint(_Stage):
         f = np.array((c0[0] + dx * gain, c0[1] + dy * gain))
         if x.order == 0:
             return Jet(f[0][:, None]), Jet(f[1][:, None])
-        ir = 1.0 / r
-        ux, uy = dx * ir, dy * ir
+        # at the centre itself psi is C1 (G(r) = 1 + r / rho0 + ...: its second derivatives are
+        # bounded but depend on the direction of approach): use the limit along +x there
+        pos = r > 0.0
+        ir = 1.0 / np.where(pos, r, 1.0)
+        ux, uy = np.where(pos, dx * ir, 1.0), np.where(pos, dy * ir, 0.0)
         g1 = np.where(ok, gain * gain * (1.0 / rho0), 0.0)  # G'
         t = r * g1
         fx = np.array((gain + t * ux * ux, t * ux * uy))

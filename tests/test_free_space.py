@@ -190,6 +190,34 @@ def test_finite_next_to_boundaries(kind, key):
     assert_outside_contract(nf, q[~ev.free], f"{world.name} boundary samples (non-free)")
 
 
+
+def test_finite_at_the_workspace_centre():
+    """The point-world map ``psi`` has a removable 0/0 at the workspace centre (it is C1 there,
+    its second derivatives depend on the direction of approach): value, gradient and Hessian
+    are finite there, equal their limits along +x, and the centre works as a goal and for the
+    oriented field."""
+    from navigation.oriented import OrientedField
+
+    checked = 0
+    # cluttered20 grown by the robot radius is not a forest (tests/test_forest.py)
+    for world in [shared_world(n) for n in ("simple", "office")] + [random_forest_world(s, gap=0.3) for s in range(6)]:
+        c = np.asarray(world.workspace.center, dtype=float)
+        goal = list(world.regions.values())[0].center
+        nf = NavigationFunction(world, goal, inflation=world.robot.radius)
+        if not nf.is_free(c[None])[0]:
+            continue
+        at, near = nf.evaluate(c, 2), nf.evaluate(c + [1e-9, 0.0], 2)
+        for name in ("value", "gradient", "hessian"):
+            a, b = getattr(at, name), getattr(near, name)
+            assert np.isfinite(a).all(), f"{world.name}: non-finite {name} at the workspace centre"
+            np.testing.assert_allclose(a, b, rtol=1e-6, atol=1e-9)
+        assert np.isfinite(OrientedField(nf, 0.3).evaluate(c).angle)
+        centred = NavigationFunction(world, c, inflation=world.robot.radius)
+        q = random_free_points(world, 50, np.random.default_rng(1), margin=world.robot.radius + 0.01)
+        assert np.isfinite(centred.evaluate(q, 2).hessian).all() and centred.value(c) == 0.0
+        checked += 1
+    assert checked >= 4
+
 @pytest.mark.parametrize(("kind", "key"), WORLD_CASES, ids=WORLD_IDS)
 def test_zero_at_the_goal(kind, key):
     world = _world(kind, key)
