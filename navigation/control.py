@@ -160,6 +160,19 @@ Choices where the paper is silent or loose, and why:
   reached) but on ``office`` the robot recirculates along room walls and bounces across
   narrow passages where ``Upsilon`` folds (99 to 92 of 100), which is why it is not the
   default.
+* **Turn limit (not in the paper; opt-in: ``ControllerConfig.turn_share = s``; the tracker's
+  wall-following mode after a loop uses 0.5).** Eq. 24b turns the robot with the tracked
+  direction at ``v grad theta_gamma . Theta``; where that exceeds ``omega_max`` the robot cannot
+  follow the direction's curvature and overshoots. Following the wall flow round a wall's
+  convex end at 0.5 m/s (turning radius ``v_max / omega_max`` = 0.33 m, the corner's a few
+  centimetres) the robot left the stand-off's band, and the unmodified field there took it back
+  into the loop it came from (``random18``, docs/control.md "Loops"). With ``s > 0``, within
+  the stand-off's wall band, ``v`` is lowered to ``s omega_max / |grad theta_gamma . Theta|``
+  (not below :data:`TURN_FLOOR`, 0.1 m/s, where the turning radius is 7 cm at ``omega_max =
+  1.5``: where ``Upsilon`` folds, ``|grad theta_gamma|`` of 10^2-10^4 rad/m, the robot is not
+  held still). It only lowers ``v``, so the safety limit's guarantee is unchanged. Not on by
+  default: on the slow closed-loop test's sampling it also makes the engaged stand-off follow
+  walls into pockets that the plain robot overshoots and leaves (measured, docs/control.md).
 * **On or outside a grown boundary (escape).** The oriented field's outside contract gives a
   unit vector back into free space, and on the boundary ``Upsilon`` points away from it. The
   safety limit alone would hold a robot there still for good (its clearance is 0, e.g. after
@@ -262,6 +275,12 @@ class ControllerConfig:
         ``r`` of the relaxed direction (see the module doc; 0, off; 1.0 is the measured setting):
         eq. 24 tracks the direction of a linearly implicit gradient step of ``r`` times the
         robot's next step instead of ``Upsilon``'s.
+    turn_share : float
+        ``s`` of the turn limit (0, off; the tracker's wall-following mode after a loop uses
+        0.5): with the stand-off, within its wall band (``standoff_reach D`` of a grown
+        boundary), ``v |grad theta_gamma . Theta| <= s omega_max``, but ``v`` is not lowered
+        below :data:`TURN_FLOOR` (0.1 m/s): the robot follows the wall flow round a convex
+        corner instead of overshooting it (see the module doc).
     """
 
     k_v: float = 1.0
@@ -283,11 +302,12 @@ class ControllerConfig:
     alpha_max: float = 0.0
     brake_share: float = 1.0
     relax: float = 0.0
+    turn_share: float = 0.0
 
     def __post_init__(self):
         check_numbers(self, ("k_v", "k_omega", "v_max", "omega_max", "k_switch", "switch_margin"), positive=True)
         check_numbers(self, ("safety_horizon", "boundary_blend", "standoff", "standoff_push", "standoff_gate",
-                             "standoff_pull", "accel_max", "alpha_max", "relax"), positive=False)
+                             "standoff_pull", "accel_max", "alpha_max", "relax", "turn_share"), positive=False)
         if not self.standoff_reach > 1.0:
             raise NavigationError(f"ControllerConfig.standoff_reach must be > 1, got {self.standoff_reach!r}")
         if not self.brake_share <= 1.0 or not self.brake_share > 0.0:
@@ -564,6 +584,18 @@ def _approach_limit(theta: float, bands, cfg: ControllerConfig) -> float:
     return limit
 
 
+TURN_FLOOR = 0.1  #: speed (m/s) the turn limit never goes below (see ``ControllerConfig.turn_share``)
+
+
+def _turn_share(bands, cfg: ControllerConfig) -> float:
+    """The share ``s`` of ``omega_max`` the turn limit lets the feed-forward of (24b) use:
+    ``cfg.turn_share`` within the stand-off's wall band of a field (``bands``: the fields'
+    :func:`_band`), else 0 (no limit)."""
+    if cfg.turn_share > 0.0 and any(b is not None and b.wall is not None for b in bands):
+        return cfg.turn_share
+    return 0.0
+
+
 def stopping_distance(v: float, config: ControllerConfig = ControllerConfig()) -> float:
     """Distance (m) the robot covers from speed ``v`` until it stands, holding each command for
     one safety horizon ``h`` and lowering ``v`` by ``a h`` per command (``a = accel_max``):
@@ -632,7 +664,8 @@ ESCAPE_SPEED = 0.02  #: speed (m/s) of that creep
 
 
 def _command(theta: float, tg: float, grad: np.ndarray, speed: float, clearance: float,
-             cfg: ControllerConfig, approach: float = math.inf, previous=None, away: float | None = None) -> Command:
+             cfg: ControllerConfig, approach: float = math.inf, previous=None, away: float | None = None,
+             turn: float = 0.0) -> Command:
     """Eq. 24 on the direction ``tg`` (gradient ``grad``): heading gate, saturation, safety
     limit and rate limit applied to ``v`` before it enters the feed-forward term, then
     ``omega`` and its rate limit (``previous = (v, omega, dt)``, see :func:`track`)."""
@@ -645,6 +678,11 @@ def _command(theta: float, tg: float, grad: np.ndarray, speed: float, clearance:
     rate_v = prev is not None and cfg.accel_max > 0
     limit = _speed_limit(clearance, cfg) if v > 0.0 or rate_v else cfg.v_max
     v = min(v, limit, approach)
+    ff = grad[0] * math.cos(theta) + grad[1] * math.sin(theta)
+    if turn > 0.0 and abs(ff) * v > turn * cfg.omega_max:
+        # turn limit: no faster than the robot can turn with the tracked direction (share
+        # ``turn`` of omega_max for the feed-forward), but not below TURN_FLOOR
+        v = max(min(v, TURN_FLOOR), turn * cfg.omega_max / abs(ff))
     if away is not None and clearance < ESCAPE_BELOW and v < ESCAPE_SPEED and raw > 0.0:
         # the safety limit holds a robot on (or inside) a grown boundary still for good; creep
         # out while it faces within 45 degrees of Upsilon, which points away from the boundary
@@ -657,7 +695,6 @@ def _command(theta: float, tg: float, grad: np.ndarray, speed: float, clearance:
         # the rate limit, within [0, v_max] and the safety limit (which it never has to
         # override while the clearance shrinks no faster than the robot moves, see safe_speed)
         v = max(0.0, min(max(v, pv - dv), pv + dv, limit))
-    ff = grad[0] * math.cos(theta) + grad[1] * math.sin(theta)
     omega = -cfg.k_omega * err + v * ff
     ws = min(max(omega, -cfg.omega_max), cfg.omega_max)
     if prev is not None and cfg.alpha_max > 0:
@@ -735,7 +772,7 @@ def track(pose, field: OrientedField, config: ControllerConfig = ControllerConfi
     room = _clearance(q, (field,), config)
     tg, grad, speed, away = _direction(q, field, config, band, beyond, room)
     return _command(theta, tg, grad, speed, room, config,
-                    _approach_limit(theta, (band,), config), previous, away)
+                    _approach_limit(theta, (band,), config), previous, away, _turn_share((band,), config))
 
 
 def _beyond(beyond) -> float:
@@ -776,4 +813,4 @@ def track_waypoints(pose, current: OrientedField, following: OrientedField | Non
     room = _clearance(q, (current, following), config)
     tg, grad, speed, away = _blend(q, current, following, config, bands, beyond, room)
     return _command(theta, tg, grad, speed, room, config,
-                    _approach_limit(theta, bands, config), previous, away)
+                    _approach_limit(theta, bands, config), previous, away, _turn_share(bands, config))

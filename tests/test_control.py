@@ -5,6 +5,7 @@ switching is continuous; bad poses are refused; commands are always finite."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -504,6 +505,38 @@ def test_standoff_limits_the_approach_to_a_boundary():
         limited += 1
     assert limited >= 20
 
+
+
+def test_turn_limit_slows_the_robot_to_the_turn_rate_it_has_within_the_wall_band():
+    """``turn_share = s`` (with the stand-off): within the wall band ``v |grad theta_gamma .
+    Theta| <= s omega_max`` unless that would take ``v`` below ``TURN_FLOOR``; elsewhere, and
+    with ``turn_share = 0``, the command is the stand-off's."""
+    from navigation.control import TURN_FLOOR, _band, _clearance, _direction
+
+    world, field = _random4_field()
+    base = ControllerConfig.from_robot(world.robot, standoff=STANDOFF, standoff_pull=1.0, standoff_reach=4.0)
+    cfg = replace(base, turn_share=0.5)
+    rng = np.random.default_rng(11)
+    limited = unchanged = 0
+    for q in random_free_points(world, 600, rng, margin=world.robot.radius + 0.001):
+        theta = float(rng.uniform(-np.pi, np.pi))
+        pose = (q[0], q[1], theta)
+        c0, c1 = track(pose, field, base), track(pose, field, cfg)
+        assert c1.theta_gamma == c0.theta_gamma and c1.v <= c0.v
+        band = _band(q, field, cfg)
+        if band.wall is None:
+            assert c1 == c0
+            unchanged += 1
+            continue
+        _, grad, _, _ = _direction(q, field, cfg, band, 0.0, _clearance(q, (field,), cfg))
+        ff = abs(grad[0] * math.cos(theta) + grad[1] * math.sin(theta))
+        assert c1.v * ff <= 0.5 * cfg.omega_max + 1e-9 or c1.v == min(c0.v, TURN_FLOOR)
+        assert c1.v >= min(c0.v, TURN_FLOOR)
+        limited += c1.v < c0.v
+    assert limited >= 10 and unchanged >= 10
+    assert track((2.5, 2.5, 0.0), field, replace(cfg, standoff=0.0)) == track((2.5, 2.5, 0.0), field)
+    with pytest.raises(NavigationError, match="turn_share"):
+        ControllerConfig(turn_share=-0.5)
 
 def _office_field(goal=(6.4, 3.3), heading=0.4):
     world = shared_world("office")
