@@ -89,7 +89,8 @@ def _episode(world, field, start, cfg, guard: bool = True) -> dict:
     return {"reached": reached, "collisions": len(m.collisions), "min_clearance": float(m.min_clearance),
             "distance": float(m.distance), "time": float(sim.time), "flips_per_m": flips / max(m.distance, 1e-9),
             "curvature": float(curvature), "chatter": chatter(poses, sim.dt), "step_times": step_times,
-            "engagements": tracker.guard.engagements if guard else 0, "jumps": jumps}
+            "engagements": tracker.guard.engagements if guard else 0, "loops": tracker.guard.loops if guard else 0,
+            "jumps": jumps}
 
 
 def _worlds(n_random: int):
@@ -133,6 +134,7 @@ def _world_row(job) -> dict:
         "chatter": statistics.fmean(e["chatter"] for e in eps),
         "flagged": sum(e["chatter"] > CHATTER_FLAG for e in eps),
         "engaged_runs": sum(e["engagements"] > 0 for e in eps),
+        "loop_runs": sum(e["loops"] > 0 for e in eps),
         "jumps": sum(e["jumps"] for e in eps),
         "max_time": max(e["time"] for e in ok) if ok else None,
         "step_median": statistics.median(times), "step_pass": statistics.median(times) <= STEP_TARGET,
@@ -156,6 +158,7 @@ def _total(rows: list[dict]) -> dict:
             "flips_per_m": mean("flips_per_m", "runs"), "curvature": mean("curvature", "runs"),
             "chatter": mean("chatter", "runs"), "flagged": sum(r["flagged"] for r in rows),
             "engaged_runs": sum(r.get("engaged_runs", 0) for r in rows),
+            "loop_runs": sum(r.get("loop_runs", 0) for r in rows),
             "jumps": sum(r["jumps"] for r in rows),
             "max_time": max((r["max_time"] for r in rows if r["max_time"] is not None), default=None),
             "step_median": statistics.median(r["step_median"] for r in rows),
@@ -204,17 +207,18 @@ def render_markdown(result: dict) -> str:
              f"(Python {result['machine']['python']}, {result['machine']['cpus']} CPUs). Goal pose reached: "
              f"within {POS_TOL} m and {HEADING_TOL} rad; dt = 0.1 s; obstacles grown by the robot radius; "
              + ("crawl guard on (navigation.Tracker)." if st.get("crawl_guard", True) else "plain controller "
-                "(navigation.track, no crawl guard).") + " Guard: runs in which it engaged the stand-off.", "",
+                "(navigation.track, no crawl guard).") + " Guard: runs in which a crawl engaged the stand-off; loops: runs in which it detected a loop.", "",
              "| world | obstacles | reached | collisions | min clearance (m) | mean path (m) | mean time (s) "
              "| longest time (s) | turn-sign flips / m | integrated abs curvature (rad) | chatter / m "
-             "| flagged (> 1/m) | guard | rate-limit jumps | controller step (ms) | <= 2 ms |",
-             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|:---:|"]
+             "| flagged (> 1/m) | guard | loops | rate-limit jumps | controller step (ms) | <= 2 ms |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|:---:|"]
     for r in result["worlds"]:
         lines.append(f"| {r['world']} | {_f(r['n_obstacles'], 'd')} | {r['reached']}/{r['runs']} | {r['collisions']} | "
                      f"{r['min_clearance']:.4f} | {_f(r['mean_distance'], '.2f')} | {_f(r['mean_time'], '.1f')} | "
                      f"{_f(r.get('max_time'), '.1f')} | "
                      f"{r['flips_per_m']:.2f} | {r['curvature']:.2f} | {r['chatter']:.2f} | {r['flagged']}/{r['runs']} | "
-                     f"{r.get('engaged_runs', 0)}/{r['runs']} | {r.get('jumps', 0)} | "
+                     f"{r.get('engaged_runs', 0)}/{r['runs']} | {r.get('loop_runs', 0)}/{r['runs']} | "
+                     f"{r.get('jumps', 0)} | "
                      f"{r['step_median'] * 1e3:.2f} | "
                      f"{'PASS' if r['step_pass'] else 'FAIL'} |")
     return "\n".join(lines) + "\n"

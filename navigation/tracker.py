@@ -24,6 +24,20 @@ wall's convex corner, and a robot following it at ``D`` without the pull drove a
 tangent out of the narrow band, where the unmodified field took it back into the junction it
 had crawled out of, round and round until the timeout (docs/control.md, "Pull-in").
 
+The guard also watches for *loops*: the robot comes back within ``loop_radius`` (5 cm) of a
+position it passed at least ``loop_length`` (1 m) of path earlier, within the last
+``loop_window`` seconds (60), away from the goal. A loop is a failure of the mode the robot was
+in, so the guard changes it for ``hold`` seconds, alternating: the first loop (and every odd
+one) engages the *wall-following* mode, the stand-off with the pull and the turn limit
+(``ControllerConfig.turn_share = turn``, 0.5: the robot slows down where the wall flow turns
+faster than it can, so it follows the flow round a wall's convex end instead of overshooting
+into the field that leads back into the loop); the second (and every even one) forces the
+*plain* controller, with the crawl detection paused, since the robot can also circle while
+following walls (into a pocket the plain robot would have overshot and left). A loop through
+which the robot never crawls (``random18``: into the junction of a chain, down a wall and round
+its end at full speed, out across the open) was out of the crawl guard's reach before
+(docs/control.md, "Loops").
+
 Not in the paper: paper 001 tracks the field with eq. 24 alone. This is a supervisor around it
 for the conditioning problem of the transformation (issue 2, docs/navigation.md "Conditioning
 next to chained walls").
@@ -34,13 +48,15 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass, replace
+from enum import IntEnum
 
+import numpy as np
 
 from .control import Command, ControllerConfig, _horizon, _pose, track_waypoints
 from .errors import NavigationError, check_numbers
 from .oriented import OrientedField
 
-__all__ = ["CrawlConfig", "CrawlGuard", "Tracker"]
+__all__ = ["CrawlConfig", "CrawlGuard", "Mode", "Tracker"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -69,6 +85,15 @@ class CrawlConfig:
     reach : float
         ``ControllerConfig.standoff_reach`` used while engaged (4.0: the wall flow's weight falls
         from 1 at ``standoff`` to 0 at four times it).
+    loop_radius : float
+        A loop: the robot comes back within this distance (m) of a position it passed (0.05;
+        0 turns the loop detection off) ...
+    loop_length : float
+        ... at least this much path (m) earlier (1.0) ...
+    loop_window : float
+        ... within the last this many seconds (60).
+    turn : float
+        ``ControllerConfig.turn_share`` of the wall-following mode after a loop (0.5).
     """
 
     window: float = 3.0
@@ -79,42 +104,64 @@ class CrawlConfig:
     standoff: float = 0.03
     pull: float = 1.0
     reach: float = 4.0
+    loop_radius: float = 0.05
+    loop_length: float = 1.0
+    loop_window: float = 60.0
+    turn: float = 0.5
 
     def __post_init__(self):
-        check_numbers(self, ("window", "min_progress", "goal_radius", "hold", "max_gap", "standoff"), positive=True)
-        check_numbers(self, ("pull",), positive=False)
+        check_numbers(self, ("window", "min_progress", "goal_radius", "hold", "max_gap", "standoff", "loop_length",
+                             "loop_window"), positive=True)
+        check_numbers(self, ("pull", "loop_radius", "turn"), positive=False)
         if not self.reach > 1.0:
             raise NavigationError(f"CrawlConfig.reach must be > 1, got {self.reach!r}")
 
 
+class Mode(IntEnum):
+    """What the tracker drives with (:meth:`CrawlGuard.update`); truthy when the stand-off is on."""
+
+    PLAIN = 0  #: the caller's controller
+    STANDOFF = 1  #: the stand-off with the pull (after a crawl)
+    FOLLOW = 2  #: the stand-off with the pull and the turn limit (wall following, after a loop)
+
+
 class CrawlGuard:
-    """Crawl detection over a sliding window of positions (see the module doc).
+    """Crawl and loop detection over the recent positions (see the module doc).
 
     ``update(t, q, goal)`` is called once per control period with the time (s), the position and
-    the tracked goal, and returns whether the stand-off is engaged for this period.
+    the tracked goal, and returns the :class:`Mode` for this period.
     """
 
-    __slots__ = ("config", "_hist", "_length", "_until", "engagements")
+    __slots__ = ("config", "_hist", "_length", "_until", "engagements", "_loop", "_loop_n", "_loop_mode",
+                 "_loop_until", "loops")
 
     def __init__(self, config: CrawlConfig = CrawlConfig()):
         self.config = config
-        self._hist: deque = deque()  # (t, cumulative path length, x, y)
+        self._hist: deque = deque()  # (t, cumulative path length, x, y) of the crawl window
         self._length = 0.0
         self._until = -math.inf
-        self.engagements = 0  #: how often the stand-off was engaged
+        self.engagements = 0  #: how often a crawl engaged the stand-off
+        self._loop = np.empty((256, 4))  # rows (t, cumulative path length, x, y) of the loop window
+        self._loop_n = 0
+        self._loop_mode = Mode.PLAIN
+        self._loop_until = -math.inf
+        self.loops = 0  #: how many loops were detected
 
     def reset(self) -> None:
         """Forget the history (a new leg, a teleported robot)."""
         self._hist.clear()
         self._length = 0.0
         self._until = -math.inf
+        self._loop_n = 0
+        self._loop_until = -math.inf
 
     @property
     def engaged_until(self) -> float:
-        """Time until which the stand-off is engaged (``-inf``: never engaged since the reset)."""
+        """Time until which the stand-off is engaged by a crawl (``-inf``: never engaged since the
+        reset)."""
         return self._until
 
-    def update(self, t: float, q, goal) -> bool:
+    def update(self, t: float, q, goal) -> Mode:
         t = float(t)
         x, y = float(q[0]), float(q[1])
         if not (math.isfinite(t) and math.isfinite(x) and math.isfinite(y)):
@@ -128,21 +175,64 @@ class CrawlGuard:
         c = self.config
         while len(h) > 1 and h[1][0] <= t - c.window:
             h.popleft()  # keep one sample at or before the window's start
+        far = math.hypot(x - float(goal[0]), y - float(goal[1])) > c.goal_radius
+        looped = self._looped(t, x, y, far)
+        if looped is not None:
+            return looped
         if t < self._until:
-            return True
+            return Mode.STANDOFF
         full = t - h[0][0] >= c.window - 1e-9
-        if full and self._length - h[0][1] < c.min_progress and \
-                math.hypot(x - float(goal[0]), y - float(goal[1])) > c.goal_radius:
+        if full and self._length - h[0][1] < c.min_progress and far:
             self._until = t + c.hold
             self.engagements += 1
-            return True
-        return False
+            return Mode.STANDOFF
+        return Mode.PLAIN
+
+    def _looped(self, t: float, x: float, y: float, far: bool) -> "Mode | None":
+        """Record the position in the loop window; the mode a loop imposes (detected now or
+        within the last ``hold`` seconds), else ``None``."""
+        c = self.config
+        if not c.loop_radius > 0:
+            return None
+        buf, n = self._loop, self._loop_n
+        if n and buf[0, 0] < t - c.loop_window:  # drop the samples older than the window
+            k = int(np.searchsorted(buf[:n, 0], t - c.loop_window))
+            buf[:n - k] = buf[k:n]
+            n -= k
+        if n == len(buf):
+            buf = self._loop = np.concatenate([buf, np.empty_like(buf)])
+        buf[n] = (t, self._length, x, y)
+        n += 1
+        self._loop_n = n
+        if t < self._loop_until:
+            return self._loop_mode
+        if not far:
+            return None
+        # the samples passed at least loop_length of path ago (the path length never decreases)
+        m = int(np.searchsorted(buf[:n, 1], self._length - c.loop_length, side="right"))
+        if m == 0:
+            return None
+        d2 = (buf[:m, 2] - x) ** 2 + (buf[:m, 3] - y) ** 2
+        if not float(d2.min()) < c.loop_radius ** 2:
+            return None
+        # a loop: the mode the robot was in does not get it out; alternate wall following and
+        # the plain controller for hold seconds, and forget the loop
+        self.loops += 1
+        self._loop_mode = Mode.FOLLOW if self.loops % 2 == 1 else Mode.PLAIN
+        self._loop_until = t + c.hold
+        self._until = -math.inf
+        buf[0] = buf[n - 1]
+        self._loop_n = 1
+        return self._loop_mode
 
 
 class Tracker:
     """Eq. 24-25 with the crawl guard and the rate limit: :func:`track_waypoints` with
-    ``config``, or with ``config`` and ``standoff = crawl.standoff`` while the guard is engaged,
-    given the previous command (``previous`` of :func:`~navigation.control.track`).
+    ``config`` (:attr:`Mode.PLAIN`), with ``config`` and the stand-off of ``crawl``
+    (``standoff``, ``pull``, ``reach``) while a crawl engaged it (:attr:`Mode.STANDOFF`), or with
+    the same and ``turn_share = crawl.turn`` for ``crawl.hold`` seconds after the first, third,
+    ... loop (:attr:`Mode.FOLLOW`; the even-numbered loops force :attr:`Mode.PLAIN` for that
+    long), given the previous command (``previous`` of :func:`~navigation.control.track`).
 
     The rate limit (with ``config.accel_max`` / ``alpha_max`` > 0, the controller's opt-in
     rate-limited mode): each command differs from the previous one by at most
@@ -162,16 +252,27 @@ class Tracker:
                  max_gap: float = 0.5):
         self.config = config
         self.guard = CrawlGuard(crawl) if crawl is not None else None
-        self._engaged_config = (replace(config, standoff=crawl.standoff, standoff_pull=crawl.pull,
-                                        standoff_reach=crawl.reach) if crawl is not None else config)
-        self._last = False
+        engaged = (replace(config, standoff=crawl.standoff, standoff_pull=crawl.pull, standoff_reach=crawl.reach)
+                   if crawl is not None else config)
+        self._configs = {Mode.PLAIN: config, Mode.STANDOFF: engaged,
+                         Mode.FOLLOW: replace(engaged, turn_share=crawl.turn) if crawl is not None else config}
+        self._mode = Mode.PLAIN
         self.max_gap = float(max_gap)
         self._sent: tuple[float, float, float] | None = None  # (t, v, omega) of the last command
 
     @property
     def engaged(self) -> bool:
         """Whether the last :meth:`command` used the stand-off."""
-        return self._last
+        return self._mode != Mode.PLAIN
+
+    @property
+    def mode(self) -> Mode:
+        """The :class:`Mode` of the last :meth:`command`."""
+        return self._mode
+
+    def config_for(self, mode: Mode) -> ControllerConfig:
+        """The controller configuration the tracker drives with in ``mode``."""
+        return self._configs[Mode(mode)]
 
     def applied(self, t: float, v: float, omega: float) -> None:
         """Record the command actually sent at time ``t`` (when the caller changed or replaced
@@ -193,9 +294,9 @@ class Tracker:
         after ``current``'s goal, :func:`~navigation.control.track`)."""
         q, _ = _pose(pose)  # the controller's pose check, before the guard records the position
         t = float(t)
-        on = self.guard is not None and self.guard.update(t, q, current.goal)
-        self._last = on
-        cmd = track_waypoints(pose, current, following, self._engaged_config if on else self.config,
+        mode = self.guard.update(t, q, current.goal) if self.guard is not None else Mode.PLAIN
+        self._mode = mode
+        cmd = track_waypoints(pose, current, following, self._configs[mode],
                               previous=self._previous(t), beyond=beyond)
         self._sent = (t, cmd.v, cmd.omega)
         return cmd

@@ -11,6 +11,7 @@ import pytest
 
 import navigation
 from navigation import CrawlConfig, CrawlGuard, Tracker
+from navigation.tracker import Mode
 from navigation.control import RATE_LIMITED, ControllerConfig, track_waypoints
 from navigation.errors import NavigationError
 from navigation.oriented import OrientedField
@@ -59,8 +60,89 @@ def test_a_pause_or_a_clock_reset_starts_the_history_over():
     assert not any(_feed(g, [(1.0, 1.0)] * 25, t0=0.0))  # time went back
 
 
+
+def _circle(n, radius=0.2, step=0.05, centre=(1.0, 1.0)):
+    """``n`` positions 0.1 s apart driving round a circle at 0.5 m/s (one lap: 1.26 m)."""
+    a = step / radius
+    return [(centre[0] + radius * math.cos(a * k), centre[1] + radius * math.sin(a * k)) for k in range(n)]
+
+
+def test_a_loop_engages_wall_following_then_the_plain_controller_alternately():
+    """Driving round a 1.26 m circle at full speed never crawls; after the first lap (at least
+    ``loop_length`` of path, back within ``loop_radius``) the guard switches to wall following
+    for ``hold`` seconds, at the next lap after that to the plain controller, then again to
+    wall following."""
+    cfg = CrawlConfig(hold=5.0)
+    g = CrawlGuard(cfg)
+    modes = _feed(g, _circle(400))
+    first = modes.index(Mode.FOLLOW)
+    assert 20 <= first <= 26 and set(modes[:first]) == {Mode.PLAIN}  # one lap: 25 steps
+    assert set(modes[first:first + 50]) == {Mode.FOLLOW}  # held for 5 s
+    second = first + 50 + modes[first + 50:].index(Mode.PLAIN)
+    assert second == first + 50  # a lap is already behind it: detected at once
+    third = second + modes[second:].index(Mode.FOLLOW)
+    assert third == second + 50
+    assert g.loops >= 3 and g.engagements == 0
+    # never within goal_radius of the goal, nor with loop_radius = 0
+    assert not any(_feed(CrawlGuard(cfg), _circle(400), goal=(1.0, 1.0)))
+    assert not any(_feed(CrawlGuard(CrawlConfig(loop_radius=0.0)), _circle(400)))
+    # a pause starts the loop history over: a lap split by one is not a loop
+    g = CrawlGuard(cfg)
+    assert not any(_feed(g, _circle(15)) + _feed(g, _circle(40)[15:], t0=10.0))
+
+
+def test_a_loop_ends_a_crawl_engagement():
+    """A robot that crawls (stand-off engaged) and then loops is switched to wall following at
+    once; the loop's hold replaces the crawl's."""
+    g = CrawlGuard(CrawlConfig(window=1.0, hold=30.0))
+    crawl = _feed(g, [(1.0, 1.0)] * 20)
+    assert crawl[-1] == Mode.STANDOFF and g.engagements == 1
+    modes = _feed(g, _circle(60, centre=(1.0, 0.8)), t0=2.0)  # the circle passes through (1, 1)
+    assert Mode.FOLLOW in modes and g.engaged_until == -math.inf
+
+
+def test_tracker_commands_in_each_mode_are_the_controllers():
+    """Wall following is the stand-off of the crawl configuration plus the turn limit."""
+    cfg = ControllerConfig()
+    crawl = CrawlConfig(turn=0.4)
+    t = Tracker(cfg, crawl)
+    assert t.config_for(Mode.PLAIN) == cfg
+    assert t.config_for(Mode.STANDOFF) == replace(cfg, standoff=crawl.standoff, standoff_pull=crawl.pull,
+                                                  standoff_reach=crawl.reach)
+    assert t.config_for(Mode.FOLLOW) == replace(t.config_for(Mode.STANDOFF), turn_share=0.4)
+    world = shared_world("simple")
+    field = OrientedField(navigation.NavigationFunction(world, goal=(3.0, 2.0), inflation=world.robot.radius), 0.0)
+    seen = set()
+    for k, q in enumerate(_circle(120, radius=0.25, centre=(1.2, 1.2))):
+        pose = (q[0], q[1], 0.05 * k)
+        cmd = t.command(k * DT, pose, field)
+        assert cmd == track_waypoints(pose, field, None, t.config_for(t.mode))
+        assert t.engaged == (t.mode != Mode.PLAIN)
+        seen.add(t.mode)
+    assert Mode.FOLLOW in seen
+
+
+def test_wall_following_after_a_loop_rescues_a_run_that_never_crawls():
+    """random18 (``gap=0.3``), start 12 of the slow closed-loop test's sampling: the robot goes
+    into the junction of a chained wall, down the wall and round its end at full speed, out
+    across the open and back into the junction, round and round, never slow enough for the
+    crawl guard. After the first loop the guard follows the wall flow with the turn limit, and
+    the robot goes round the wall's end to the goal pose."""
+    world = random_forest_world(18, gap=0.3)
+    r = world.robot.radius
+    rng = np.random.default_rng(7)  # tests/test_closed_loop.py's sampling
+    goal = random_free_points(world, 1, rng, margin=r + 0.2)[0]
+    field = OrientedField(navigation.NavigationFunction(world, goal=goal, inflation=r),
+                          heading=rng.uniform(-math.pi, math.pi))
+    s = random_free_points(world, 100, rng, margin=r + 0.05)[12]
+    headings = rng.uniform(-math.pi, math.pi, size=13)  # drawn one by one after the points
+    start = (float(s[0]), float(s[1]), float(headings[12]))
+    _assert_rescued(world, field, start, before=CrawlConfig(loop_radius=0.0))
+
 @pytest.mark.parametrize("bad", [{"window": 0.0}, {"hold": -1.0}, {"min_progress": math.nan}, {"standoff": True},
-                                 {"max_gap": math.inf}, {"pull": -1.0}, {"reach": 1.0}, {"reach": math.nan}])
+                                 {"max_gap": math.inf}, {"pull": -1.0}, {"reach": 1.0}, {"reach": math.nan},
+                                 {"loop_radius": -0.05}, {"loop_length": 0.0}, {"loop_window": math.inf},
+                                 {"turn": math.nan}])
 def test_bad_crawl_config_is_refused(bad):
     with pytest.raises(NavigationError):
         CrawlConfig(**bad)
@@ -114,8 +196,8 @@ def test_the_guard_rescues_a_run_that_crawls_with_the_plain_controller():
 def _assert_rescued(world, field, start, before: CrawlConfig | None):
     """From ``start`` the robot times out (120 s) with ``Tracker(cfg, before)`` (``None``: the
     plain controller), the failure the case is for (if the field improves, pick another case),
-    and reaches the goal pose with the default ``Tracker``, which engages its guard, touching
-    nothing."""
+    and reaches the goal pose with the default ``Tracker``, whose guard engages (a crawl or a
+    loop), touching nothing."""
     cfg = ControllerConfig.from_robot(world.robot)
     reached, _ = run_closed_loop(world, field, start, cfg, max_steps=1200,
                                  tracker=None if before is None else Tracker(cfg, before))
@@ -123,7 +205,7 @@ def _assert_rescued(world, field, start, before: CrawlConfig | None):
     tracker = Tracker(cfg)
     reached, sim = run_closed_loop(world, field, start, cfg, max_steps=1200, tracker=tracker)
     assert reached, f"ended at {sim.pose} after {sim.time:.1f} s"
-    assert tracker.guard.engagements >= 1
+    assert tracker.guard.engagements + tracker.guard.loops >= 1
     assert sim.metrics.min_clearance > 0.0 and not sim.metrics.collisions
 
 
@@ -143,7 +225,7 @@ def test_the_pull_keeps_the_engaged_robot_on_the_wall_round_a_convex_corner():
     s = random_free_points(world, 100, rng, margin=r + 0.05)[2]
     headings = rng.uniform(-math.pi, math.pi, size=3)  # drawn one by one after the points
     start = (float(s[0]), float(s[1]), float(headings[2]))
-    _assert_rescued(world, field, start, before=CrawlConfig(pull=0.0, reach=2.0))
+    _assert_rescued(world, field, start, before=CrawlConfig(pull=0.0, reach=2.0, loop_radius=0.0))
 
 
 def test_rate_limited_tracker_starts_from_rest_follows_what_was_sent_and_restarts_after_a_gap():
