@@ -2,7 +2,7 @@
 
 The controller is the one the executive drives the robot with: :class:`navigation.Tracker`,
 eq. 24-25 (:func:`navigation.track_waypoints`) with the crawl guard that engages the stand-off
-while the robot crawls (:mod:`navigation.tracker`).
+while the robot crawls and changes mode when it loops (:mod:`navigation.tracker`).
 
 From random start poses to a random goal pose per world (dt = 0.1 s, noise-free, obstacles grown
 by the robot radius for the field), the robot must
@@ -14,7 +14,7 @@ by the robot radius for the field), the robot must
   ``office`` and the random forest worlds some runs still time out creeping along narrow
   valleys of the field next to chained walls, or wander in narrow passages (the open
   conditioning defect of issue 2, see docs/navigation.md "Conditioning next to chained walls"
-  and docs/control.md; the crawl guard rescues most of them); there the test reports the count
+  and docs/control.md; the crawl and loop guard rescues most of them); there the test reports the count
   and is an expected failure (``xfail``, not skipped: an unexpected pass shows as XPASS).
 
 The same runs in the controller's rate-limited mode (``accel_max=1.0, alpha_max=6.0,

@@ -128,16 +128,8 @@ def test_wall_following_after_a_loop_rescues_a_run_that_never_crawls():
     across the open and back into the junction, round and round, never slow enough for the
     crawl guard. After the first loop the guard follows the wall flow with the turn limit, and
     the robot goes round the wall's end to the goal pose."""
-    world = random_forest_world(18, gap=0.3)
-    r = world.robot.radius
-    rng = np.random.default_rng(7)  # tests/test_closed_loop.py's sampling
-    goal = random_free_points(world, 1, rng, margin=r + 0.2)[0]
-    field = OrientedField(navigation.NavigationFunction(world, goal=goal, inflation=r),
-                          heading=rng.uniform(-math.pi, math.pi))
-    s = random_free_points(world, 100, rng, margin=r + 0.05)[12]
-    headings = rng.uniform(-math.pi, math.pi, size=13)  # drawn one by one after the points
-    start = (float(s[0]), float(s[1]), float(headings[12]))
-    _assert_rescued(world, field, start, before=CrawlConfig(loop_radius=0.0))
+    _assert_rescued(*_slow_test_case(18, 12), before=CrawlConfig(loop_radius=0.0))
+
 
 @pytest.mark.parametrize("bad", [{"window": 0.0}, {"hold": -1.0}, {"min_progress": math.nan}, {"standoff": True},
                                  {"max_gap": math.inf}, {"pull": -1.0}, {"reach": 1.0}, {"reach": math.nan},
@@ -216,16 +208,22 @@ def test_the_pull_keeps_the_engaged_robot_on_the_wall_round_a_convex_corner():
     wall at 2.5 cm to the corner, drives along the tangent out of the 6 cm band, and the
     unmodified field takes it back to the junction, round and round until the 120 s timeout;
     with the default pull it stays on the wall round the corner and reaches the goal pose."""
-    world = random_forest_world(17, gap=0.3)
+    _assert_rescued(*_slow_test_case(17, 2), before=CrawlConfig(pull=0.0, reach=2.0, loop_radius=0.0))
+
+
+def _slow_test_case(seed: int, index: int):
+    """``(world, field, start)`` of start ``index`` on random world ``seed`` (``gap=0.3``) in
+    tests/test_closed_loop.py's sampling (``default_rng(7)``: goal, heading, 100 starts, then one
+    heading per start)."""
+    world = random_forest_world(seed, gap=0.3)
     r = world.robot.radius
-    rng = np.random.default_rng(7)  # tests/test_closed_loop.py's sampling
+    rng = np.random.default_rng(7)
     goal = random_free_points(world, 1, rng, margin=r + 0.2)[0]
     field = OrientedField(navigation.NavigationFunction(world, goal=goal, inflation=r),
                           heading=rng.uniform(-math.pi, math.pi))
-    s = random_free_points(world, 100, rng, margin=r + 0.05)[2]
-    headings = rng.uniform(-math.pi, math.pi, size=3)  # drawn one by one after the points
-    start = (float(s[0]), float(s[1]), float(headings[2]))
-    _assert_rescued(world, field, start, before=CrawlConfig(pull=0.0, reach=2.0, loop_radius=0.0))
+    s = random_free_points(world, 100, rng, margin=r + 0.05)[index]
+    headings = rng.uniform(-math.pi, math.pi, size=index + 1)  # drawn one by one after the points
+    return world, field, (float(s[0]), float(s[1]), float(headings[index]))
 
 
 def test_rate_limited_tracker_starts_from_rest_follows_what_was_sent_and_restarts_after_a_gap():
