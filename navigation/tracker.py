@@ -25,8 +25,9 @@ tangent out of the narrow band, where the unmodified field took it back into the
 had crawled out of, round and round until the timeout (docs/control.md, "Pull-in").
 
 The guard also watches for *loops*: the robot comes back within ``loop_radius`` (5 cm) of a
-position it passed at least ``loop_length`` (1 m) of path earlier, within the last
-``loop_window`` seconds (60), away from the goal. A loop is a failure of the mode the robot was
+position it passed at least ``loop_length`` (1 m) of path earlier, heading within
+``loop_heading`` (45 degrees) of the way it headed then (the way back along an out-and-back
+path is not a loop), within the last ``loop_window`` seconds (60), away from the goal. A loop is a failure of the mode the robot was
 in, so the guard changes it for ``hold`` seconds, alternating: the first loop (and every odd
 one) engages the *wall-following* mode, the stand-off with the pull and the turn limit
 (``ControllerConfig.turn_share = turn``, 0.5: the robot slows down where the wall flow turns
@@ -88,6 +89,9 @@ class CrawlConfig:
     loop_radius : float
         A loop: the robot comes back within this distance (m) of a position it passed (0.05;
         0 turns the loop detection off) ...
+    loop_heading : float
+        ... heading within this angle (rad) of the heading it had then (pi / 4: a return along
+        the way it came is not a loop) ...
     loop_length : float
         ... at least this much path (m) earlier (1.0) ...
     loop_window : float
@@ -105,13 +109,14 @@ class CrawlConfig:
     pull: float = 1.0
     reach: float = 4.0
     loop_radius: float = 0.05
+    loop_heading: float = math.pi / 4
     loop_length: float = 1.0
     loop_window: float = 60.0
     turn: float = 0.5
 
     def __post_init__(self):
-        check_numbers(self, ("window", "min_progress", "goal_radius", "hold", "max_gap", "standoff", "loop_length",
-                             "loop_window"), positive=True)
+        check_numbers(self, ("window", "min_progress", "goal_radius", "hold", "max_gap", "standoff", "loop_heading",
+                             "loop_length", "loop_window"), positive=True)
         check_numbers(self, ("pull", "loop_radius", "turn"), positive=False)
         if not self.reach > 1.0:
             raise NavigationError(f"CrawlConfig.reach must be > 1, got {self.reach!r}")
@@ -141,7 +146,7 @@ class CrawlGuard:
         self._length = 0.0
         self._until = -math.inf
         self.engagements = 0  #: how often a crawl engaged the stand-off
-        self._loop = np.empty((256, 4))  # rows (t, cumulative path length, x, y) of the loop window
+        self._loop = np.empty((256, 5))  # rows (t, cumulative path length, x, y, heading) of the loop window
         self._loop_n = 0
         self._loop_mode = Mode.PLAIN
         self._loop_until = -math.inf
@@ -161,11 +166,18 @@ class CrawlGuard:
         reset)."""
         return self._until
 
-    def update(self, t: float, q, goal) -> Mode:
+    def update(self, t: float, q, goal, heading: float | None = None) -> Mode:
+        """The :class:`Mode` for the control period at time ``t`` (s), position ``q``, tracked
+        ``goal`` and, if known, the robot's ``heading`` (rad; without it a loop is a return to
+        the same position in any heading)."""
         t = float(t)
         x, y = float(q[0]), float(q[1])
-        if not (math.isfinite(t) and math.isfinite(x) and math.isfinite(y)):
-            raise NavigationError(f"CrawlGuard.update needs a finite time and position, got {t}, {q!r}")
+        if heading is not None:
+            heading = float(heading)
+        if not (math.isfinite(t) and math.isfinite(x) and math.isfinite(y)) or \
+                (heading is not None and not math.isfinite(heading)):
+            raise NavigationError(f"CrawlGuard.update needs a finite time, position and heading, "
+                                  f"got {t}, {q!r}, {heading!r}")
         h = self._hist
         if h and not 0.0 <= t - h[-1][0] <= self.config.max_gap:
             self.reset()  # time went back, or the robot was not under control meanwhile: start over
@@ -176,7 +188,7 @@ class CrawlGuard:
         while len(h) > 1 and h[1][0] <= t - c.window:
             h.popleft()  # keep one sample at or before the window's start
         far = math.hypot(x - float(goal[0]), y - float(goal[1])) > c.goal_radius
-        looped = self._looped(t, x, y, far)
+        looped = self._looped(t, x, y, far, heading)
         if looped is not None:
             return looped
         if t < self._until:
@@ -188,9 +200,9 @@ class CrawlGuard:
             return Mode.STANDOFF
         return Mode.PLAIN
 
-    def _looped(self, t: float, x: float, y: float, far: bool) -> "Mode | None":
-        """Record the position in the loop window; the mode a loop imposes (detected now or
-        within the last ``hold`` seconds), else ``None``."""
+    def _looped(self, t: float, x: float, y: float, far: bool, heading: float | None) -> "Mode | None":
+        """Record the pose in the loop window; the mode a loop imposes (detected now or within
+        the last ``hold`` seconds), else ``None``."""
         c = self.config
         if not c.loop_radius > 0:
             return None
@@ -201,7 +213,7 @@ class CrawlGuard:
             n -= k
         if n == len(buf):
             buf = self._loop = np.concatenate([buf, np.empty_like(buf)])
-        buf[n] = (t, self._length, x, y)
+        buf[n] = (t, self._length, x, y, math.nan if heading is None else heading)
         n += 1
         self._loop_n = n
         if t < self._loop_until:
@@ -213,6 +225,9 @@ class CrawlGuard:
         if m == 0:
             return None
         d2 = (buf[:m, 2] - x) ** 2 + (buf[:m, 3] - y) ** 2
+        if heading is not None:  # the same pose: not the way back along an out-and-back path
+            turned = np.abs(np.remainder(buf[:m, 4] - heading + math.pi, 2.0 * math.pi) - math.pi)
+            d2 = np.where(turned >= c.loop_heading, math.inf, d2)  # NaN (no heading then): a position loop
         if not float(d2.min()) < c.loop_radius ** 2:
             return None
         # a loop: the mode the robot was in does not get it out; alternate wall following and
@@ -292,9 +307,9 @@ class Tracker:
         """The command for ``pose = (x, y, theta)`` at time ``t`` (s) towards ``current``
         (blended into ``following`` near ``current``'s goal, eq. 25; ``beyond``: the path length
         after ``current``'s goal, :func:`~navigation.control.track`)."""
-        q, _ = _pose(pose)  # the controller's pose check, before the guard records the position
+        q, th = _pose(pose)  # the controller's pose check, before the guard records the position
         t = float(t)
-        mode = self.guard.update(t, q, current.goal) if self.guard is not None else Mode.PLAIN
+        mode = self.guard.update(t, q, current.goal, th) if self.guard is not None else Mode.PLAIN
         self._mode = mode
         cmd = track_waypoints(pose, current, following, self._configs[mode],
                               previous=self._previous(t), beyond=beyond)

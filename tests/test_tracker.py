@@ -91,6 +91,23 @@ def test_a_loop_engages_wall_following_then_the_plain_controller_alternately():
     assert not any(_feed(g, _circle(15)) + _feed(g, _circle(40)[15:], t0=10.0))
 
 
+def test_a_loop_needs_the_same_heading_when_the_heading_is_known():
+    """Driving out 0.6 m and back along the same line passes every point again, in the
+    opposite heading: not a loop when the guard knows the heading (``loop_heading``), a
+    position loop when it does not. Round a circle the heading repeats with the position."""
+    line = [(1.0 + 0.05 * k, 1.0) for k in range(13)]
+    out_and_back = line + line[::-1][1:]
+    headings = [0.0] * 13 + [math.pi] * 12
+    g = CrawlGuard(CrawlConfig())
+    assert not any(g.update(k * DT, q, FAR, h) for k, (q, h) in enumerate(zip(out_and_back, headings)))
+    g = CrawlGuard(CrawlConfig())
+    assert any(g.update(k * DT, q, FAR) for k, q in enumerate(out_and_back))
+    g = CrawlGuard(CrawlConfig())
+    circle = _circle(60)
+    assert Mode.FOLLOW in [g.update(k * DT, q, FAR, 0.25 * k + math.pi / 2) for k, q in enumerate(circle)]
+    with pytest.raises(NavigationError, match="heading"):
+        CrawlGuard().update(0.0, (1.0, 1.0), FAR, math.nan)
+
 def test_a_loop_ends_a_crawl_engagement():
     """A robot that crawls (stand-off engaged) and then loops is switched to wall following at
     once; the loop's hold replaces the crawl's."""
@@ -114,7 +131,7 @@ def test_tracker_commands_in_each_mode_are_the_controllers():
     field = OrientedField(navigation.NavigationFunction(world, goal=(3.0, 2.0), inflation=world.robot.radius), 0.0)
     seen = set()
     for k, q in enumerate(_circle(120, radius=0.25, centre=(1.2, 1.2))):
-        pose = (q[0], q[1], 0.05 * k)
+        pose = (q[0], q[1], 0.2 * k + math.pi / 2)  # heading along the circle
         cmd = t.command(k * DT, pose, field)
         assert cmd == track_waypoints(pose, field, None, t.config_for(t.mode))
         assert t.engaged == (t.mode != Mode.PLAIN)
@@ -134,6 +151,7 @@ def test_wall_following_after_a_loop_rescues_a_run_that_never_crawls():
 @pytest.mark.parametrize("bad", [{"window": 0.0}, {"hold": -1.0}, {"min_progress": math.nan}, {"standoff": True},
                                  {"max_gap": math.inf}, {"pull": -1.0}, {"reach": 1.0}, {"reach": math.nan},
                                  {"loop_radius": -0.05}, {"loop_length": 0.0}, {"loop_window": math.inf},
+                                 {"loop_heading": 0.0},
                                  {"turn": math.nan}])
 def test_bad_crawl_config_is_refused(bad):
     with pytest.raises(NavigationError):
