@@ -292,7 +292,8 @@ def sphere_to_point(X, Y, centres, rho, delta, ws, rho0, width0, OX, OY):
         ok = r < rho0
         gain = rho0 / (rho0 - r if ok else _TINY)
         if r > 0.0:
-            ux, uy = dx / r, dy / r
+            ir = 1.0 / r
+            ux, uy = dx * ir, dy * ir
         else:  # the centre: psi is C1 there (G(r) = 1 + r / rho0 + ...); the limit along +x
             ux, uy = 1.0, 0.0
         g1 = gain * gain * (1.0 / rho0) if ok else 0.0
