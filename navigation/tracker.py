@@ -27,13 +27,13 @@ had crawled out of, round and round until the timeout (docs/control.md, "Pull-in
 The guard also watches for *loops*: the robot comes back within ``loop_radius`` (5 cm) of a
 position it passed at least ``loop_length`` (1 m) of path earlier, heading within
 ``loop_heading`` (45 degrees) of the way it headed then (the way back along an out-and-back
-path is not a loop), within the last ``loop_window`` seconds (60), away from the goal. A loop is a failure of the mode the robot was
-in, so the guard changes it for ``hold`` seconds, alternating: the first loop (and every odd
-one) engages the *wall-following* mode, the stand-off with the pull and the turn limit
-(``ControllerConfig.turn_share = turn``, 0.5: the robot slows down where the wall flow turns
-faster than it can, so it follows the flow round a wall's convex end instead of overshooting
-into the field that leads back into the loop); the second (and every even one) forces the
-*plain* controller, with the crawl detection paused, since the robot can also circle while
+path is not a loop), within the last ``loop_window`` seconds (60), away from the goal. A loop
+is a failure of the mode the robot was in, so the guard changes it for ``hold`` seconds,
+alternating: the first loop (and every odd one) engages the *wall-following* mode, the
+stand-off with the pull and the turn limit (``ControllerConfig.turn_share = turn``, 0.5: the
+robot slows down where the wall flow turns faster than it can, so it follows the flow round a
+wall's convex end instead of overshooting into the field that leads back into the loop); the
+second (and every even one) forces the *plain* controller, with the crawl detection paused, since the robot can also circle while
 following walls (into a pocket the plain robot would have overshot and left). A loop through
 which the robot never crawls (``random18``: into the junction of a chain, down a wall and round
 its end at full speed, out across the open) was out of the crawl guard's reach before
@@ -133,8 +133,9 @@ class Mode(IntEnum):
 class CrawlGuard:
     """Crawl and loop detection over the recent positions (see the module doc).
 
-    ``update(t, q, goal)`` is called once per control period with the time (s), the position and
-    the tracked goal, and returns the :class:`Mode` for this period.
+    ``update(t, q, goal, heading)`` is called once per control period with the time (s), the
+    position, the tracked goal and the robot's heading, and returns the :class:`Mode` for this
+    period (``engagements`` and ``loops`` count the crawls and loops seen).
     """
 
     __slots__ = ("config", "_hist", "_length", "_until", "engagements", "_loop", "_loop_n", "_loop_mode",
@@ -287,7 +288,10 @@ class Tracker:
 
     def config_for(self, mode: Mode) -> ControllerConfig:
         """The controller configuration the tracker drives with in ``mode``."""
-        return self._configs[Mode(mode)]
+        try:
+            return self._configs[Mode(mode)]
+        except ValueError:
+            raise NavigationError(f"mode must be one of {', '.join(m.name for m in Mode)}, got {mode!r}") from None
 
     def applied(self, t: float, v: float, omega: float) -> None:
         """Record the command actually sent at time ``t`` (when the caller changed or replaced

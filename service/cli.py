@@ -85,7 +85,8 @@ def _common(p: argparse.ArgumentParser, *, default_world: str | None) -> None:
                         "(with --accel-max unset it is 1 m/s^2)")
     p.add_argument("--no-crawl-guard", action="store_true",
                    help="track with eq. 24 alone: never engage the stand-off that walks a crawling robot "
-                        "along the wall (docs/control.md 'Crawl guard', 'Pull-in')")
+                        "along the wall, nor switch modes when it loops (docs/control.md 'Crawl guard', "
+                        "'Pull-in', 'Loops')")
     p.add_argument("-v", "--verbose", action="store_true", help="log every warning and state change")
 
 

@@ -127,6 +127,8 @@ def test_tracker_commands_in_each_mode_are_the_controllers():
     assert t.config_for(Mode.STANDOFF) == replace(cfg, standoff=crawl.standoff, standoff_pull=crawl.pull,
                                                   standoff_reach=crawl.reach)
     assert t.config_for(Mode.FOLLOW) == replace(t.config_for(Mode.STANDOFF), turn_share=0.4)
+    with pytest.raises(NavigationError, match="mode"):
+        t.config_for(7)
     world = shared_world("simple")
     field = OrientedField(navigation.NavigationFunction(world, goal=(3.0, 2.0), inflation=world.robot.radius), 0.0)
     seen = set()
