@@ -207,7 +207,8 @@ def render_markdown(result: dict) -> str:
              f"(Python {result['machine']['python']}, {result['machine']['cpus']} CPUs). Goal pose reached: "
              f"within {POS_TOL} m and {HEADING_TOL} rad; dt = 0.1 s; obstacles grown by the robot radius; "
              + ("crawl guard on (navigation.Tracker)." if st.get("crawl_guard", True) else "plain controller "
-                "(navigation.track, no crawl guard).") + " Guard: runs in which a crawl engaged the stand-off; loops: runs in which it detected a loop.", "",
+                "(navigation.track, no crawl guard).")
+             + " Guard: runs in which a crawl engaged the stand-off; loops: runs in which it detected a loop.", "",
              "| world | obstacles | reached | collisions | min clearance (m) | mean path (m) | mean time (s) "
              "| longest time (s) | turn-sign flips / m | integrated abs curvature (rad) | chatter / m "
              "| flagged (> 1/m) | guard | loops | rate-limit jumps | controller step (ms) | <= 2 ms |",

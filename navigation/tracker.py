@@ -268,10 +268,12 @@ class Tracker:
                  max_gap: float = 0.5):
         self.config = config
         self.guard = CrawlGuard(crawl) if crawl is not None else None
-        engaged = (replace(config, standoff=crawl.standoff, standoff_pull=crawl.pull, standoff_reach=crawl.reach)
-                   if crawl is not None else config)
-        self._configs = {Mode.PLAIN: config, Mode.STANDOFF: engaged,
-                         Mode.FOLLOW: replace(engaged, turn_share=crawl.turn) if crawl is not None else config}
+        if crawl is None:  # never leaves Mode.PLAIN
+            self._configs = dict.fromkeys(Mode, config)
+        else:
+            engaged = replace(config, standoff=crawl.standoff, standoff_pull=crawl.pull, standoff_reach=crawl.reach)
+            self._configs = {Mode.PLAIN: config, Mode.STANDOFF: engaged,
+                             Mode.FOLLOW: replace(engaged, turn_share=crawl.turn)}
         self._mode = Mode.PLAIN
         self.max_gap = float(max_gap)
         self._sent: tuple[float, float, float] | None = None  # (t, v, omega) of the last command
