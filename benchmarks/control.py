@@ -3,13 +3,15 @@
 Run from the repository root::
 
     python -m benchmarks.control [--quick] [--out benchmarks/results] [--starts 10] [--goals 2] [--random 5] [--jobs 1]
-                                 [--push-forward] [--standoff D] [--no-crawl-guard] [--rate-limited]
+                                 [--push-forward] [--standoff D] [--no-crawl-guard] [--no-route] [--rate-limited]
 
 For each world (``simple``, ``office`` with all obstacles known, and random forest worlds from
 ``tests.worldgen`` with ``gap=0.3`` so that they stay forests in the robot's configuration
 space) and each random goal pose, the robot starts from random free poses and is driven by
 :class:`navigation.Tracker` (the controller of :func:`navigation.track` with the crawl guard,
-as the executive drives the robot; ``--no-crawl-guard``: :func:`navigation.track` alone) on an
+as the executive drives the robot, and the route rescue: on a loop or every third crawl
+engagement the harmonic tree from the robot to the goal pose, :class:`tamp.routes.TreeRoutes`;
+``--no-route``: the guard alone; ``--no-crawl-guard``: :func:`navigation.track` alone) on an
 :class:`navigation.OrientedField` built on the obstacles grown by the robot radius, in
 :class:`service.sim.Simulator` (dt = 0.1 s, noise-free), for at most 120 simulated seconds. A run *reaches* the goal pose when it is within 0.05 m and 0.1 rad.
 
@@ -26,7 +28,8 @@ mode's bound, ``DV_BOUND`` / ``DOMEGA_BOUND``; 0 expected in that mode). ``--pus
 (``--standoff 0``: the controller without the stand-off; docs/control.md), ``--rate-limited``
 with the rate-limited mode (``navigation.control.RATE_LIMITED``); the crawl guard
 then engages ``standoff=0.03`` only while the robot crawls. Also the median
-time of one controller step (field, Jacobian, command) with its target <= 2 ms.
+time of one controller step (field, Jacobian, command) with its target <= 2 ms, and the longest
+step (a route's planning and the first field of its waypoints fall on one step).
 Results: ``<out>/control.json`` and ``<out>/control.md`` (also printed); progress on stderr.
 """
 
@@ -44,6 +47,7 @@ import numpy as np
 import navigation
 from navigation.control import RATE_LIMITED, ControllerConfig, track
 from navigation.tracker import CrawlConfig, Tracker
+from tamp.routes import TreeRoutes
 from navigation.oriented import OrientedField, wrap_angle
 from service.sim import Simulator
 from benchmarks._common import log, machine_info, write_results
@@ -60,9 +64,9 @@ CHATTER_FLAG = 1.0  #: chatter per metre above which a run is flagged (as in ben
 
 
 
-def _episode(world, field, start, cfg, guard: bool = True) -> dict:
+def _episode(world, field, start, cfg, guard: bool = True, routes: TreeRoutes | None = None) -> dict:
     sim = Simulator(world, seed=0, pose=start)
-    tracker = Tracker(cfg, CrawlConfig()) if guard else None
+    tracker = Tracker(cfg, CrawlConfig(), route=routes) if guard else None
     omegas, step_times, poses = [], [], []
     reached, jumps = False, 0
     for _ in range(int(MAX_TIME / sim.dt)):
@@ -90,6 +94,7 @@ def _episode(world, field, start, cfg, guard: bool = True) -> dict:
             "distance": float(m.distance), "time": float(sim.time), "flips_per_m": flips / max(m.distance, 1e-9),
             "curvature": float(curvature), "chatter": chatter(poses, sim.dt), "step_times": step_times,
             "engagements": tracker.guard.engagements if guard else 0, "loops": tracker.guard.loops if guard else 0,
+            "routes": tracker.routes if guard else 0,
             "jumps": jumps}
 
 
@@ -102,9 +107,10 @@ def _worlds(n_random: int):
 
 def _world_row(job) -> dict:
     """Closed-loop runs of one world: ``job = (name, world, starts, goals, push_forward, standoff,
-    guard, rate_limited, relax)`` (``standoff``, ``relax`` ``None``: the :class:`ControllerConfig`
-    default; ``guard``: the crawl guard)."""
-    name, world, starts, goals, push_forward, standoff, guard, rate, relax = job
+    guard, rate_limited, relax, route)`` (``standoff``, ``relax`` ``None``: the :class:`ControllerConfig`
+    default; ``guard``: the crawl guard; ``route``: its route rescue)."""
+    name, world, starts, goals, push_forward, standoff, guard, rate, relax, route = job
+    routes = TreeRoutes(world) if guard and route else None
     rng = np.random.default_rng(0)
     r = world.robot.radius
     extra = {} if standoff is None else {"standoff": standoff}
@@ -119,7 +125,7 @@ def _world_row(job) -> dict:
         field = OrientedField(navigation.NavigationFunction(world, goal=goal, inflation=r),
                               heading=rng.uniform(-math.pi, math.pi))
         for s in random_free_points(world, starts, rng, margin=r + 0.05):
-            e = _episode(world, field, (s[0], s[1], rng.uniform(-math.pi, math.pi)), cfg, guard)
+            e = _episode(world, field, (s[0], s[1], rng.uniform(-math.pi, math.pi)), cfg, guard, routes)
             times += e.pop("step_times")
             eps.append(e)
     ok = [e for e in eps if e["reached"]]
@@ -135,9 +141,11 @@ def _world_row(job) -> dict:
         "flagged": sum(e["chatter"] > CHATTER_FLAG for e in eps),
         "engaged_runs": sum(e["engagements"] > 0 for e in eps),
         "loop_runs": sum(e["loops"] > 0 for e in eps),
+        "route_runs": sum(e["routes"] > 0 for e in eps),
         "jumps": sum(e["jumps"] for e in eps),
         "max_time": max(e["time"] for e in ok) if ok else None,
         "step_median": statistics.median(times), "step_pass": statistics.median(times) <= STEP_TARGET,
+        "step_max": max(times),
     }
     log(f"[bench] {name}: {row['reached']}/{row['runs']} reached, {row['collisions']} collisions")
     return row
@@ -159,18 +167,20 @@ def _total(rows: list[dict]) -> dict:
             "chatter": mean("chatter", "runs"), "flagged": sum(r["flagged"] for r in rows),
             "engaged_runs": sum(r.get("engaged_runs", 0) for r in rows),
             "loop_runs": sum(r.get("loop_runs", 0) for r in rows),
+            "route_runs": sum(r.get("route_runs", 0) for r in rows),
             "jumps": sum(r["jumps"] for r in rows),
             "max_time": max((r["max_time"] for r in rows if r["max_time"] is not None), default=None),
             "step_median": statistics.median(r["step_median"] for r in rows),
-            "step_pass": all(r["step_pass"] for r in rows)}
+            "step_pass": all(r["step_pass"] for r in rows),
+            "step_max": max((r["step_max"] for r in rows if r.get("step_max") is not None), default=None)}
 
 
 def run(*, quick: bool = False, starts: int = 10, goals: int = 2, n_random: int = 5, jobs: int = 1,
         push_forward: bool = False, standoff: float | None = None, crawl_guard: bool = True,
-        rate_limited: bool = False, relax: float | None = None) -> dict:
+        rate_limited: bool = False, relax: float | None = None, route: bool = True) -> dict:
     if quick:
         starts, goals, n_random = 2, 1, 0
-    work = [(name, world, starts, goals, push_forward, standoff, crawl_guard, rate_limited, relax)
+    work = [(name, world, starts, goals, push_forward, standoff, crawl_guard, rate_limited, relax, route)
             for name, world in _worlds(n_random)
             if not quick or name == "simple"]
     if jobs > 1:
@@ -183,7 +193,7 @@ def run(*, quick: bool = False, starts: int = 10, goals: int = 2, n_random: int 
     return {"benchmark": "control", "quick": quick,
             "settings": {"starts": starts, "goals": goals, "random": n_random, "push_forward": push_forward,
                          "standoff": standoff,
-                         "crawl_guard": crawl_guard, "rate_limited": rate_limited, "relax": relax},
+                         "crawl_guard": crawl_guard, "route": route, "rate_limited": rate_limited, "relax": relax},
             "tolerances": {"position": POS_TOL, "heading": HEADING_TOL, "max_time": MAX_TIME},
             "step_target": STEP_TARGET, "worlds": rows,
             "machine": machine_info()}
@@ -200,28 +210,35 @@ def render_markdown(result: dict) -> str:
            + (" --push-forward" if st.get("push_forward") else "")
            + (f" --standoff {st['standoff']:g}" if st.get("standoff") is not None else "")
            + ("" if st.get("crawl_guard", True) else " --no-crawl-guard")
+           + ("" if st.get("route", True) or not st.get("crawl_guard", True) else " --no-route")
            + (" --rate-limited" if st.get("rate_limited") else "")
            + (f" --relax {st['relax']:g}" if st.get("relax") is not None else ""))
     lines = ["# Closed-loop controller benchmark", "",
              f"`{cmd}` "
              f"(Python {result['machine']['python']}, {result['machine']['cpus']} CPUs). Goal pose reached: "
              f"within {POS_TOL} m and {HEADING_TOL} rad; dt = 0.1 s; obstacles grown by the robot radius; "
-             + ("crawl guard on (navigation.Tracker)." if st.get("crawl_guard", True) else "plain controller "
-                "(navigation.track, no crawl guard).")
-             + " Guard: runs in which a crawl engaged the stand-off; loops: runs in which it detected a loop.", "",
+             + (("crawl guard on (navigation.Tracker)" + (", with the route rescue (tamp.routes.TreeRoutes)."
+                                                          if st.get("route", True) else ", no route rescue."))
+                if st.get("crawl_guard", True) else "plain controller (navigation.track, no crawl guard).")
+             + " Guard: runs in which a crawl engaged the stand-off; loops: runs in which it detected a loop; "
+               "routes: runs that planned a route; longest step: the slowest controller step (a route's "
+               "planning and first field).", "",
              "| world | obstacles | reached | collisions | min clearance (m) | mean path (m) | mean time (s) "
              "| longest time (s) | turn-sign flips / m | integrated abs curvature (rad) | chatter / m "
-             "| flagged (> 1/m) | guard | loops | rate-limit jumps | controller step (ms) | <= 2 ms |",
-             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|:---:|"]
+             "| flagged (> 1/m) | guard | loops | routes | rate-limit jumps | controller step (ms) | <= 2 ms "
+             "| longest step (ms) |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|:---:|---:|"]
     for r in result["worlds"]:
         lines.append(f"| {r['world']} | {_f(r['n_obstacles'], 'd')} | {r['reached']}/{r['runs']} | {r['collisions']} | "
                      f"{r['min_clearance']:.4f} | {_f(r['mean_distance'], '.2f')} | {_f(r['mean_time'], '.1f')} | "
                      f"{_f(r.get('max_time'), '.1f')} | "
                      f"{r['flips_per_m']:.2f} | {r['curvature']:.2f} | {r['chatter']:.2f} | {r['flagged']}/{r['runs']} | "
                      f"{r.get('engaged_runs', 0)}/{r['runs']} | {r.get('loop_runs', 0)}/{r['runs']} | "
+                     f"{r.get('route_runs', 0)}/{r['runs']} | "
                      f"{r.get('jumps', 0)} | "
                      f"{r['step_median'] * 1e3:.2f} | "
-                     f"{'PASS' if r['step_pass'] else 'FAIL'} |")
+                     f"{'PASS' if r['step_pass'] else 'FAIL'} | "
+                     f"{_f(None if r.get('step_max') is None else r['step_max'] * 1e3, '.1f')} |")
     return "\n".join(lines) + "\n"
 
 
@@ -244,6 +261,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="ControllerConfig.relax (0: track Upsilon itself; default: the config's)")
     parser.add_argument("--no-crawl-guard", action="store_true",
                         help="drive with navigation.track alone (no crawl guard, navigation.tracker)")
+    parser.add_argument("--no-route", action="store_true",
+                        help="the crawl guard without its route rescue (tamp.routes.TreeRoutes)")
     args = parser.parse_args(argv)
     if args.starts < 1 or args.goals < 1 or args.random < 0 or args.jobs < 1:
         parser.error("--starts, --goals and --jobs must be >= 1 and --random >= 0")
@@ -251,7 +270,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error("--relax must be >= 0")
     result = run(quick=args.quick, starts=args.starts, goals=args.goals, n_random=args.random, jobs=args.jobs,
                  push_forward=args.push_forward, standoff=args.standoff, crawl_guard=not args.no_crawl_guard,
-                 rate_limited=args.rate_limited, relax=args.relax)
+                 rate_limited=args.rate_limited, relax=args.relax, route=not args.no_route)
     write_results(args.out, "control", result, render_markdown(result))
     return 0
 

@@ -39,6 +39,19 @@ which the robot never crawls (``random18``: into the junction of a chain, down a
 its end at full speed, out across the open) was out of the crawl guard's reach before
 (docs/control.md, "Loops").
 
+With a *route planner* (``Tracker(config, crawl, route=planner)``, a callable ``planner(pose,
+goal_pose)`` returning oriented waypoints ending at the goal pose, or ``None``;
+:class:`tamp.routes.TreeRoutes` plans the harmonic tree of paper 001 eq. 7-8, 26, the way the
+executive guides a mission) the tracker answers every loop, and every ``route_crawls``-th crawl
+engagement (3), with a new route from the robot's pose: it tracks the route's waypoints one
+field each (a navigation function on the caller's forest, built when first tracked) with eq.
+25's switch to the next one, passes a waypoint within ``route_tolerance`` (0.15 m), and hands
+over to the caller's field (and its ``following``) for the last one, the goal pose. The guard
+keeps watching (its goal is the tracked waypoint), so a route that fails too is replaced by the
+next one; a new goal from the caller drops the route. The route's fields share the caller's
+forest, safety limit and saturation, so every command is still the controller's. Measured in
+docs/control.md, "Route rescue".
+
 Not in the paper: paper 001 tracks the field with eq. 24 alone. This is a supervisor around it
 for the conditioning problem of the transformation (issue 2, docs/navigation.md "Conditioning
 next to chained walls").
@@ -56,6 +69,7 @@ import numpy as np
 from .control import Command, ControllerConfig, _horizon, _pose, track_waypoints
 from .errors import NavigationError, check_numbers
 from .oriented import OrientedField
+from .potential import NavigationFunction
 
 __all__ = ["CrawlConfig", "CrawlGuard", "Mode", "Tracker"]
 
@@ -98,6 +112,9 @@ class CrawlConfig:
         ... within the last this many seconds (60).
     turn : float
         ``ControllerConfig.turn_share`` of the wall-following mode after a loop (0.5).
+    route_crawls : int
+        With a route planner (``Tracker(..., route=...)``): every loop, and every
+        ``route_crawls``-th crawl engagement (3), asks for a new route to the goal.
     """
 
     window: float = 3.0
@@ -113,6 +130,7 @@ class CrawlConfig:
     loop_length: float = 1.0
     loop_window: float = 60.0
     turn: float = 0.5
+    route_crawls: int = 3
 
     def __post_init__(self):
         check_numbers(self, ("window", "min_progress", "goal_radius", "hold", "max_gap", "standoff", "loop_heading",
@@ -120,6 +138,9 @@ class CrawlConfig:
         check_numbers(self, ("pull", "loop_radius", "turn"), positive=False)
         if not self.reach > 1.0:
             raise NavigationError(f"CrawlConfig.reach must be > 1, got {self.reach!r}")
+        n = self.route_crawls
+        if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+            raise NavigationError(f"CrawlConfig.route_crawls must be an integer >= 1, got {n!r}")
 
 
 class Mode(IntEnum):
@@ -261,13 +282,35 @@ class Tracker:
     static, known world) the rate limit never has to be overridden; where it shrinks faster (an
     obstacle discovered ahead) the safety limit wins and ``v`` drops at once.
 
-    ``crawl=None`` disables the guard (the commands of :func:`track_waypoints` with ``config``).
+    ``crawl=None`` disables the guard (the commands of :func:`track_waypoints` with ``config``),
+    and with it the route rescue.
+
+    ``route`` (optional): the route planner of the module doc, a callable ``(pose, goal_pose) ->
+    waypoints or None``; ``route_tolerance``: the distance (m) within which a route waypoint
+    counts as passed (0.15, the executive's ``waypoint_tolerance``). ``routes`` and
+    ``route_misses`` count the routes planned and the calls that found none (or a waypoint
+    outside the field's free space). A malformed route (not one or more finite poses) raises
+    :class:`NavigationError`.
     """
 
     def __init__(self, config: ControllerConfig = ControllerConfig(), crawl: CrawlConfig | None = CrawlConfig(),
-                 max_gap: float = 0.5):
+                 max_gap: float = 0.5, route=None, route_tolerance: float = 0.15):
         self.config = config
         self.guard = CrawlGuard(crawl) if crawl is not None else None
+        if route is not None and not callable(route):
+            raise NavigationError(f"route must be a callable (pose, goal) -> waypoints or None, got {route!r}")
+        self._route_fn = route if crawl is not None else None
+        self.route_tolerance = float(route_tolerance)
+        if not (math.isfinite(self.route_tolerance) and self.route_tolerance > 0):
+            raise NavigationError(f"route_tolerance must be a positive finite number, got {route_tolerance!r}")
+        self._target = None  # the caller's current field the route leads to
+        self._route: tuple = ()  # its waypoints (x, y, theta), the last one the target's goal pose
+        self._route_fields: list = []  # one field per waypoint but the last (built when first tracked)
+        self._route_rest = np.zeros(0)  # path length from each waypoint to the route's end
+        self._route_i = 0  # the waypoint tracked now
+        self._failures = 0  # the guard's failures (loops, every route_crawls-th crawl) already answered
+        self.routes = 0  #: how many routes were planned
+        self.route_misses = 0  #: how often the planner found no route
         if crawl is None:  # never leaves Mode.PLAIN
             self._configs = dict.fromkeys(Mode, config)
         else:
@@ -315,9 +358,73 @@ class Tracker:
         after ``current``'s goal, :func:`~navigation.control.track`)."""
         q, th = _pose(pose)  # the controller's pose check, before the guard records the position
         t = float(t)
+        if self._route_fn is not None:
+            current, following, beyond = self._routed(q, th, current, following, beyond)
         mode = self.guard.update(t, q, current.goal, th) if self.guard is not None else Mode.PLAIN
         self._mode = mode
         cmd = track_waypoints(pose, current, following, self._configs[mode],
                               previous=self._previous(t), beyond=beyond)
         self._sent = (t, cmd.v, cmd.omega)
         return cmd
+
+    @property
+    def route(self) -> tuple:
+        """The waypoints ``(x, y, theta)`` of the route tracked now, from the current one to the
+        goal pose (empty without a route)."""
+        return self._route[self._route_i:]
+
+    def _routed(self, q: np.ndarray, th: float, current: OrientedField, following, beyond: float):
+        """``(current, following, beyond)`` to track: the caller's, or along the route."""
+        g = self.guard
+        failures = g.loops + g.engagements // g.config.route_crawls
+        if current is not self._target:  # a new goal: forget the route and the failures so far
+            self._target, self._route, self._route_i, self._failures = current, (), 0, failures
+        if failures > self._failures:
+            self._failures = failures
+            self._plan(q, th, current)
+        route = self._route
+        if not route:
+            return current, following, beyond
+        i, last = self._route_i, len(route) - 1
+        tol2 = self.route_tolerance ** 2
+        while i < last and (q[0] - route[i][0]) ** 2 + (q[1] - route[i][1]) ** 2 < tol2:
+            i += 1
+        self._route_i = i
+        if i == last:
+            return current, following, beyond
+        try:
+            cur = self._route_field(i)
+            fol = self._route_field(i + 1) if i + 1 < last else current
+        except NavigationError:  # a waypoint outside the field's free space: drop the route
+            self._route, self._route_i = (), 0
+            self.route_misses += 1
+            return current, following, beyond
+        return cur, fol, float(self._route_rest[i]) + float(beyond)  # beyond: path length after waypoint i
+
+    def _plan(self, q: np.ndarray, th: float, current: OrientedField) -> None:
+        goal = (float(current.goal[0]), float(current.goal[1]), float(current.heading))
+        self._route, self._route_i = (), 0
+        wps = self._route_fn((float(q[0]), float(q[1]), th), goal)
+        if wps is None:
+            self.route_misses += 1
+            return
+        try:
+            wps = np.asarray(wps, dtype=float).reshape(-1, 3)
+        except (TypeError, ValueError):
+            raise NavigationError(f"a route must be a sequence of poses (x, y, theta), got {wps!r}") from None
+        if not (len(wps) and np.all(np.isfinite(wps))):
+            raise NavigationError(f"a route must hold one or more finite poses, got {wps!r}")
+        wps[-1] = goal  # the route ends at the caller's goal pose, tracked with the caller's field
+        steps = np.hypot(*np.diff(wps[:, :2], axis=0).T)
+        self._route_rest = np.concatenate((np.cumsum(steps[::-1])[::-1], [0.0]))
+        self._route = tuple(tuple(w) for w in wps)
+        self._route_fields = [None] * (len(wps) - 1)
+        self.routes += 1
+
+    def _route_field(self, i: int) -> OrientedField:
+        f = self._route_fields[i]
+        if f is None:
+            x, y, heading = self._route[i]
+            f = self._route_fields[i] = OrientedField(NavigationFunction(self._target.nf.forest, goal=(x, y)),
+                                                      heading=heading)
+        return f
