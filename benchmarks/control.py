@@ -9,8 +9,8 @@ For each world (``simple``, ``office`` with all obstacles known, and random fore
 ``tests.worldgen`` with ``gap=0.3`` so that they stay forests in the robot's configuration
 space) and each random goal pose, the robot starts from random free poses and is driven by
 :class:`navigation.Tracker` (the controller of :func:`navigation.track` with the crawl guard,
-as the executive drives the robot, and the route rescue: on a loop or every third crawl
-engagement the harmonic tree from the robot to the goal pose, :class:`tamp.routes.TreeRoutes`;
+as the executive drives the robot, and the route rescue: on every loop or crawl engagement
+the harmonic tree from the robot to the goal pose, :class:`tamp.routes.TreeRoutes`;
 ``--no-route``: the guard alone; ``--no-crawl-guard``: :func:`navigation.track` alone) on an
 :class:`navigation.OrientedField` built on the obstacles grown by the robot radius, in
 :class:`service.sim.Simulator` (dt = 0.1 s, noise-free), for at most 120 simulated seconds. A run *reaches* the goal pose when it is within 0.05 m and 0.1 rad.

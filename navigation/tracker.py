@@ -42,10 +42,10 @@ its end at full speed, out across the open) was out of the crawl guard's reach b
 With a *route planner* (``Tracker(config, crawl, route=planner)``, a callable ``planner(pose,
 goal_pose)`` returning oriented waypoints ending at the goal pose, or ``None``;
 :class:`tamp.routes.TreeRoutes` plans the harmonic tree of paper 001 eq. 7-8, 26, the way the
-executive guides a mission) the tracker answers every loop, and every ``route_crawls``-th crawl
-engagement (3), with a new route from the robot's pose: it tracks the route's waypoints one
-field each (a navigation function on the caller's forest, built when first tracked) with eq.
-25's switch to the next one, passes a waypoint within ``route_tolerance`` (0.15 m), and hands
+executive guides a mission) the tracker answers every loop and every crawl engagement (every
+``route_crawls``-th, 1 by default) with a new route from the robot's pose: it tracks the
+route's waypoints one field each (a navigation function on the caller's forest, built when
+first tracked) with eq. 25's switch to the next one, passes a waypoint within ``route_tolerance`` (0.15 m), and hands
 over to the caller's field (and its ``following``) for the last one, the goal pose. The guard
 keeps watching (its goal is the tracked waypoint), so a route that fails too is replaced by the
 next one; a new goal from the caller drops the route. The route's fields share the caller's
@@ -114,7 +114,7 @@ class CrawlConfig:
         ``ControllerConfig.turn_share`` of the wall-following mode after a loop (0.5).
     route_crawls : int
         With a route planner (``Tracker(..., route=...)``): every loop, and every
-        ``route_crawls``-th crawl engagement (3), asks for a new route to the goal.
+        ``route_crawls``-th crawl engagement (1: every one), asks for a new route to the goal.
     """
 
     window: float = 3.0
@@ -130,7 +130,7 @@ class CrawlConfig:
     loop_length: float = 1.0
     loop_window: float = 60.0
     turn: float = 0.5
-    route_crawls: int = 3
+    route_crawls: int = 1
 
     def __post_init__(self):
         check_numbers(self, ("window", "min_progress", "goal_radius", "hold", "max_gap", "standoff", "loop_heading",
@@ -409,11 +409,12 @@ class Tracker:
             self.route_misses += 1
             return
         try:
-            wps = np.asarray(wps, dtype=float).reshape(-1, 3)
+            arr = np.array(wps, dtype=float)
         except (TypeError, ValueError):
-            raise NavigationError(f"a route must be a sequence of poses (x, y, theta), got {wps!r}") from None
-        if not (len(wps) and np.all(np.isfinite(wps))):
-            raise NavigationError(f"a route must hold one or more finite poses, got {wps!r}")
+            arr = None
+        if arr is None or arr.ndim != 2 or arr.shape[1] != 3 or not len(arr) or not np.all(np.isfinite(arr)):
+            raise NavigationError(f"a route must be one or more finite poses (x, y, theta), got {wps!r}")
+        wps = arr
         wps[-1] = goal  # the route ends at the caller's goal pose, tracked with the caller's field
         steps = np.hypot(*np.diff(wps[:, :2], axis=0).T)
         self._route_rest = np.concatenate((np.cumsum(steps[::-1])[::-1], [0.0]))

@@ -3,7 +3,7 @@
 The controller is :class:`navigation.Tracker`, eq. 24-25 (:func:`navigation.track_waypoints`)
 with the crawl guard that engages the stand-off while the robot crawls and changes mode when it
 loops (:mod:`navigation.tracker`), as the executive drives the robot, plus the route rescue: on
-every loop and every third crawl engagement the tracker follows the harmonic tree from its pose
+every loop and every crawl engagement the tracker follows the harmonic tree from its pose
 to the goal pose (:class:`tamp.routes.TreeRoutes`, one field per waypoint with eq. 25's switch;
 the executive re-plans its own trees instead).
 

@@ -91,7 +91,7 @@ def test_every_third_crawl_engagement_plans_a_route_that_is_tracked_waypoint_by_
     cfg = ControllerConfig.from_robot(world.robot)
     field = _field(world, (6.4, 3.3), 0.0)
     planner = _Scripted([(3.0, 2.2, 0.0), (5.0, 3.0, 0.5), (9.0, 9.0, 9.0)])  # the last pose is replaced
-    crawl = CrawlConfig(window=1.0, hold=1.0)
+    crawl = CrawlConfig(window=1.0, hold=1.0, route_crawls=3)
     t = Tracker(cfg, crawl, route=planner)
     k = 0
     while t.guard.engagements < crawl.route_crawls:  # standing still: the guard engages every 1-2 s
@@ -140,7 +140,8 @@ def test_a_route_through_an_obstacle_is_dropped():
     assert t.routes >= 1 and t.route_misses == t.routes and t.route == ()
 
 
-@pytest.mark.parametrize("route", [[(1.0, math.nan, 0.0)], [], [(1.0, 2.0)], "abc"])
+@pytest.mark.parametrize("route", [[(1.0, math.nan, 0.0)], [], [(1.0, 2.0)], [(1.0, 2.0), (3.0, 4.0), (5.0, 6.0)],
+                                   "abc", [(1.0, 2.0, 0.0), (3.0, 4.0)]])
 def test_a_malformed_route_is_refused(route):
     world = shared_world("office")
     field = _field(world, (6.4, 3.3), 0.0)
