@@ -22,7 +22,7 @@ import math
 
 import numpy as np
 
-from navigation.errors import TampError
+from navigation.errors import TampError, WorldError
 from .harmonic_tree import NoTreePathError, RotationWeights, plan_tree
 from .roadmap import Roadmap, RoadmapConfig
 
@@ -75,7 +75,13 @@ class TreeRoutes:
         self.last_buffer: float | None = None
 
     def roadmap(self, buffer: float) -> Roadmap:
-        """The roadmap at ``buffer`` (built on first use)."""
+        """The roadmap at ``buffer`` (built on first use).
+
+        Raises
+        ------
+        WorldError
+            The workspace is too small for the robot radius plus ``buffer``.
+        """
         rm = self._roadmaps.get(buffer)
         if rm is None:
             rm = self._roadmaps[buffer] = Roadmap.from_world(self.world, RoadmapConfig(buffer=buffer),
@@ -87,7 +93,7 @@ class TreeRoutes:
         for b in self.buffers:
             try:
                 tree = plan_tree(self.roadmap(b), pose, goal, self.weights, self.n_headings)
-            except NoTreePathError:
+            except (NoTreePathError, WorldError):  # no path, or no room for the buffer at all
                 continue
             self.last_buffer = b
             return tuple(tuple(float(v) for v in np.asarray(w, dtype=float)) for w in tree.waypoints[1:])

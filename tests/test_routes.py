@@ -68,6 +68,14 @@ def test_a_walled_off_goal_has_no_route():
     assert routes.last_buffer is None
 
 
+def test_a_buffer_the_workspace_has_no_room_for_is_skipped():
+    world = shared_world("simple")
+    routes = TreeRoutes(world, buffers=(100.0, 0.0))
+    wps = routes((1.0, 1.0, 0.0), (3.0, 2.0, 0.5))
+    assert wps is not None and routes.last_buffer == 0.0 and np.allclose(wps[-1], (3.0, 2.0, 0.5))
+    assert TreeRoutes(world, buffers=(100.0,))((1.0, 1.0, 0.0), (3.0, 2.0, 0.5)) is None
+
+
 @pytest.mark.parametrize("bad", [(), (math.nan,), (-0.1,), "x", None])
 def test_bad_route_buffers_are_refused(bad):
     with pytest.raises(TampError):
