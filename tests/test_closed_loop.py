@@ -13,13 +13,14 @@ by the robot radius for the field), the robot must
 * never touch an obstacle or the boundary (the simulator's certified swept collision check),
   with every command finite and within ``v_max`` / ``omega_max`` - asserted strictly on every
   world (the controller's safety limit makes this hold whatever the field does);
-* end within 0.05 m and 0.1 rad of the goal pose - asserted strictly on ``simple``. On
-  ``office`` and the random forest worlds some runs still time out creeping along narrow
-  valleys of the field next to chained walls, or wander in narrow passages (the open
-  conditioning defect of issue 2, see docs/navigation.md "Conditioning next to chained walls"
-  and docs/control.md; the crawl and loop guard and the route rescue rescue most of them); there
-  the test reports the count and is an expected failure (``xfail``, not skipped: an unexpected
-  pass shows as XPASS).
+* end within 0.05 m and 0.1 rad of the goal pose - asserted strictly on ``simple``, and on
+  every other world for at least ``FLOOR`` (95 %) of the runs (``RATE_FLOOR``, 90 %, in the
+  rate-limited mode), rounded down. On ``office`` and the random forest worlds a few runs still
+  time out creeping along narrow valleys of the field next to chained walls, or wander in
+  narrow passages (the open conditioning defect of issue 2, see docs/navigation.md
+  "Conditioning next to chained walls" and docs/control.md; the crawl and loop guard and the
+  route rescue rescue most of them); above the floor the test reports the count and is an
+  expected failure (``xfail``, not skipped).
 
 The same runs in the controller's rate-limited mode (``accel_max=1.0, alpha_max=6.0,
 brake_share=0.5``, docs/control.md "Rate-limited mode") also assert the bounded change per step
@@ -54,6 +55,10 @@ MAX_TIME, DT = 120.0, 0.1  # simulated seconds per run, control period
 FAST = [("simple", 10), ("office", 5), ("random0", 5), ("random1", 5)]
 FAST_RATE = [("simple", 10), ("random0", 5)]
 SLOW = [("simple", 100), ("office", 100)] + [(f"random{s}", 100) for s in range(30)]
+#: share of a world's runs that must reach the goal pose (rounded down; below it the test fails,
+#: above it a shortfall is an expected failure): the default controller and the rate-limited mode
+#: (twenty-fifth session, slow run: every world at 99/100 or more, and at 94/100 or more)
+FLOOR, RATE_FLOOR = 0.95, 0.9
 
 
 def _world(name: str):
@@ -82,8 +87,9 @@ def _check_world(name: str, n_starts: int, mode: dict | None = None):
     if failures:
         message = (f"{name}: {len(failures)}/{n_starts} runs did not reach {field} within {MAX_TIME:.0f} s "
                    f"(no collision): " + "; ".join(failures[:5]))
-        if name == "simple":
-            pytest.fail(message)
+        floor = math.floor((RATE_FLOOR if mode else FLOOR) * n_starts)
+        if name == "simple" or n_starts - len(failures) < floor:
+            pytest.fail(message + ("" if name == "simple" else f" (fewer than the floor of {floor})"))
         pytest.xfail("issue 2 conditioning next to chained walls: " + message)
 
 
