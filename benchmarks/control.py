@@ -47,9 +47,9 @@ import numpy as np
 import navigation
 from navigation.control import RATE_LIMITED, ControllerConfig, track
 from navigation.tracker import CrawlConfig, Tracker
-from tamp.routes import TreeRoutes
 from navigation.oriented import OrientedField, wrap_angle
 from service.sim import Simulator
+from tamp.routes import TreeRoutes
 from benchmarks._common import log, machine_info, write_results
 from benchmarks.methods import chatter
 from tests.worldgen import random_forest_world, random_free_points

@@ -33,8 +33,9 @@ alternating: the first loop (and every odd one) engages the *wall-following* mod
 stand-off with the pull and the turn limit (``ControllerConfig.turn_share = turn``, 0.5: the
 robot slows down where the wall flow turns faster than it can, so it follows the flow round a
 wall's convex end instead of overshooting into the field that leads back into the loop); the
-second (and every even one) forces the *plain* controller, with the crawl detection paused, since the robot can also circle while
-following walls (into a pocket the plain robot would have overshot and left). A loop through
+second (and every even one) forces the *plain* controller, with the crawl detection paused,
+since the robot can also circle while following walls (into a pocket the plain robot would have
+overshot and left). A loop through
 which the robot never crawls (``random18``: into the junction of a chain, down a wall and round
 its end at full speed, out across the open) was out of the crawl guard's reach before
 (docs/control.md, "Loops").
@@ -274,11 +275,12 @@ class Tracker:
     The rate limit (with ``config.accel_max`` / ``alpha_max`` > 0, the controller's opt-in
     rate-limited mode): each command differs from the previous one by at most
     ``config.accel_max dt`` in ``v`` and ``config.alpha_max dt`` in ``omega``, ``dt`` the time
-    since that command (1 m/s^2 and 6 rad/s^2: 0.1 m/s and 0.6 rad/s per 0.1 s period). The previous command is the last :meth:`command`, or what the caller reports it
-    actually sent (:meth:`applied`, e.g. a stop or a slower command of a supervisor). The first
-    command, and the first after more than ``max_gap`` seconds without one, start from rest
-    (``(0, 0)``, one ``safety_horizon`` ago). The safety limit (:func:`~navigation.control.safe_speed`)
-    accounts for the braking: while the clearance shrinks no faster than the robot moves (a
+    since that command (1 m/s^2 and 6 rad/s^2: 0.1 m/s and 0.6 rad/s per 0.1 s period). The
+    previous command is the last :meth:`command`, or what the caller reports it actually sent
+    (:meth:`applied`, e.g. a stop or a slower command of a supervisor). The first command, and
+    the first after more than ``max_gap`` seconds without one, start from rest (``(0, 0)``, one
+    ``safety_horizon`` ago). The safety limit (:func:`~navigation.control.safe_speed`) accounts
+    for the braking: while the clearance shrinks no faster than the robot moves (a
     static, known world) the rate limit never has to be overridden; where it shrinks faster (an
     obstacle discovered ahead) the safety limit wins and ``v`` drops at once.
 

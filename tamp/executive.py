@@ -363,7 +363,8 @@ class ExecutiveConfig:
         crawls (:mod:`navigation.tracker`: less than 0.1 m travelled in 3 s away from the
         tracked waypoint), and switches to wall following or the plain controller when it
         loops (since the twenty-fourth session, docs/control.md "Loops"); default
-        ``CrawlConfig()``. ``None`` tracks with the plain controller. On by default since the twenty-third session (docs/executive.md): on
+        ``CrawlConfig()``. ``None`` tracks with the plain controller. On by default since the
+        twenty-third session (docs/executive.md): on
         ``python -m benchmarks.executive --random 60 --jitter 4`` it changed one of 63 nominal
         routes (``cluttered20`` 10.50 -> 10.43 m) and completed all 252 jittered missions
         (251 without: ``random44`` from start 1 circled for 290 s at a gap next to a chain),

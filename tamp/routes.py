@@ -20,8 +20,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from navigation.errors import TampError, WorldError
 from .harmonic_tree import NoTreePathError, RotationWeights, plan_tree
 from .roadmap import Roadmap, RoadmapConfig
@@ -72,6 +70,7 @@ class TreeRoutes:
         self.weights = RotationWeights() if weights is None else weights
         self.known_only = bool(known_only)
         self._roadmaps: dict[float, Roadmap] = {}
+        self._no_room: set[float] = set()  # buffers whose roadmap cannot be built (not retried)
         self.last_buffer: float | None = None
 
     def roadmap(self, buffer: float) -> Roadmap:
@@ -91,10 +90,15 @@ class TreeRoutes:
     def __call__(self, pose, goal) -> tuple | None:
         self.last_buffer = None
         for b in self.buffers:
+            if b in self._no_room:
+                continue
             try:
                 tree = plan_tree(self.roadmap(b), pose, goal, self.weights, self.n_headings)
-            except (NoTreePathError, WorldError):  # no path, or no room for the buffer at all
+            except WorldError:  # no room for the buffer at all: skip it from now on
+                self._no_room.add(b)
+                continue
+            except NoTreePathError:
                 continue
             self.last_buffer = b
-            return tuple(tuple(float(v) for v in np.asarray(w, dtype=float)) for w in tree.waypoints[1:])
+            return tuple(tuple(map(float, w)) for w in tree.waypoints[1:])
         return None

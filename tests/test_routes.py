@@ -73,6 +73,7 @@ def test_a_buffer_the_workspace_has_no_room_for_is_skipped():
     routes = TreeRoutes(world, buffers=(100.0, 0.0))
     wps = routes((1.0, 1.0, 0.0), (3.0, 2.0, 0.5))
     assert wps is not None and routes.last_buffer == 0.0 and np.allclose(wps[-1], (3.0, 2.0, 0.5))
+    assert routes((1.0, 1.0, 0.0), (3.0, 2.0, 0.5)) == wps  # the buffer without room is not retried
     assert TreeRoutes(world, buffers=(100.0,))((1.0, 1.0, 0.0), (3.0, 2.0, 0.5)) is None
 
 
