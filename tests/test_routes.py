@@ -173,10 +173,12 @@ def test_bad_route_crawls_is_refused(bad):
         CrawlConfig(route_crawls=bad)
 
 
-@pytest.mark.parametrize("seed,index", [(21, 8), (25, 18)], ids=["loops-at-a-chain-end", "pinned-in-a-notch"])
+@pytest.mark.parametrize("seed,index", [(21, 26), (25, 18)], ids=["loops-at-a-chain-end", "pinned-in-a-notch"])
 def test_a_route_rescues_a_run_the_guard_alone_loses(seed, index):
     """Starts of the slow closed-loop test's sampling that time out (120 s) with the guard alone:
-    random21 start 8 circles at the end of a chained wall; random25 start 18 ends pinned in a
+    random21 start 26 circles at the end of a chained wall (start 8, the case until the
+    twenty-sixth session, now reaches the goal pose with the guard alone: the escape band's
+    direction, navigation.control); random25 start 18 ends pinned in a
     concave notch 10 micrometres from the grown boundary (crawl engagements, no loop). With the
     harmonic tree to the goal as a route (:class:`TreeRoutes`) both reach the goal pose,
     touching nothing."""

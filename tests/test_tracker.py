@@ -12,9 +12,10 @@ import pytest
 import navigation
 from navigation import CrawlConfig, CrawlGuard, Tracker
 from navigation.tracker import Mode
-from navigation.control import RATE_LIMITED, ControllerConfig, track_waypoints
+from navigation.control import ESCAPE_BELOW, ESCAPE_SPEED, RATE_LIMITED, ControllerConfig, _band, _direction, track_waypoints
 from navigation.errors import NavigationError
-from navigation.oriented import OrientedField
+from navigation.oriented import OrientedField, wrap_angle
+from tamp.routes import TreeRoutes
 
 from .conftest import shared_world
 from .test_control import run_closed_loop
@@ -272,3 +273,28 @@ def test_rate_limited_tracker_starts_from_rest_follows_what_was_sent_and_restart
     tr = Tracker(plain, crawl=None)
     tr.applied(0.0, 0.5, 1.5)
     assert tr.command(0.1, pose, field) == track_waypoints(pose, field, None, plain)
+
+
+def test_the_engaged_stand_off_does_not_hold_a_robot_in_the_escape_band():
+    """random13 start 8 of the slow closed-loop test: the engaged stand-off's wall flow, in the
+    notch of two grown obstacles, points along the wall the robot is 25 micrometres from, where
+    the isotropic safety limit allows 0.15 mm/s: the robot stood there for 100 s. Within the
+    escape band the controller tracks ``Upsilon`` (away from the wall) instead, creeps out at
+    ``ESCAPE_SPEED`` once it faces it, and the run reaches the goal pose, touching nothing."""
+    world, field, start = _slow_test_case(13, 8)
+    cfg = ControllerConfig.from_robot(world.robot)
+    engaged = Tracker(cfg).config_for(Mode.STANDOFF)
+    q = np.array([3.7472, 3.8469])
+    assert 0.0 < field.clearance.exact(q) < ESCAPE_BELOW
+    band = _band(q, field, engaged)
+    away = float(field.evaluate(q).angle)
+    wall_flow = _direction(q, field, engaged, band)[0]
+    assert math.cos(wrap_angle(wall_flow - away)) < math.sqrt(0.5)  # the case: along the wall
+    along = track_waypoints((*q, wall_flow), field, None, engaged)
+    assert along.theta_gamma == away and along.omega * wrap_angle(wall_flow - away) < 0  # turns away
+    facing = track_waypoints((*q, away), field, None, engaged)
+    assert facing.v == pytest.approx(ESCAPE_SPEED, rel=1e-6) and abs(facing.omega) < 0.05
+    tracker = Tracker(cfg, route=TreeRoutes(world))
+    reached, sim = run_closed_loop(world, field, start, cfg, max_steps=1200, tracker=tracker)
+    assert reached, f"ended at {sim.pose} after {sim.time:.1f} s"
+    assert sim.metrics.min_clearance > 0.0 and not sim.metrics.collisions
