@@ -14,7 +14,7 @@ by the robot radius for the field), the robot must
   with every command finite and within ``v_max`` / ``omega_max`` - asserted strictly on every
   world (the controller's safety limit makes this hold whatever the field does);
 * end within 0.05 m and 0.1 rad of the goal pose - asserted strictly on ``simple``, and on
-  every other world for at least ``FLOOR`` (95 %) of the runs (``RATE_FLOOR``, 90 %, in the
+  every other world for at least ``FLOOR`` (98 %) of the runs (``RATE_FLOOR``, 90 %, in the
   rate-limited mode), rounded down. On ``office`` and the random forest worlds a few runs still
   time out creeping along narrow valleys of the field next to chained walls, or wander in
   narrow passages (the open conditioning defect of issue 2, see docs/navigation.md
@@ -57,8 +57,8 @@ FAST_RATE = [("simple", 10), ("random0", 5)]
 SLOW = [("simple", 100), ("office", 100)] + [(f"random{s}", 100) for s in range(30)]
 #: share of a world's runs that must reach the goal pose (rounded down; below it the test fails,
 #: above it a shortfall is an expected failure): the default controller and the rate-limited mode
-#: (twenty-fifth session, slow run: every world at 99/100 or more, and at 94/100 or more)
-FLOOR, RATE_FLOOR = 0.95, 0.9
+#: (twenty-sixth session, slow run: every world at 99/100 or more, and at 94/100 or more)
+FLOOR, RATE_FLOOR = 0.98, 0.9
 
 
 def _world(name: str):
