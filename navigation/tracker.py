@@ -49,7 +49,12 @@ route's waypoints one field each (a navigation function on the caller's forest, 
 first tracked) with eq. 25's switch to the next one, passes a waypoint within ``route_tolerance`` (0.15 m), and hands
 over to the caller's field (and its ``following``) for the last one, the goal pose. The guard
 keeps watching (its goal is the tracked waypoint), so a route that fails too is replaced by the
-next one; a new goal from the caller drops the route. The route's fields share the caller's
+next one; a new goal from the caller drops the route. A route is a plan from the pose it was
+planned at: when the robot strays more than ``route_deviation`` (0.3 m) from the segment it
+follows (from that pose, or the last waypoint passed, to the next waypoint), the tracker plans
+a new route from where it is, at most once per guard ``window`` (3 s): the stand-off, engaged
+by the crawl that asked for the route, can take the robot round a wall out of sight of the next
+waypoint, whose field then leads it about for a minute. The route's fields share the caller's
 forest, safety limit and saturation, so every command is still the controller's. Measured in
 docs/control.md, "Route rescue".
 
@@ -289,14 +294,16 @@ class Tracker:
 
     ``route`` (optional): the route planner of the module doc, a callable ``(pose, goal_pose) ->
     waypoints or None``; ``route_tolerance``: the distance (m) within which a route waypoint
-    counts as passed (0.15, the executive's ``waypoint_tolerance``). ``routes`` and
-    ``route_misses`` count the routes planned and the calls that found none (or a waypoint
-    outside the field's free space). A malformed route (not one or more finite poses) raises
+    counts as passed (0.15, the executive's ``waypoint_tolerance``); ``route_deviation``: the
+    distance (m) from the followed segment beyond which the route is planned again from the
+    robot's pose (0.3; 0 turns it off). ``routes`` and ``route_misses`` count the routes
+    planned and the calls that found none (or a waypoint outside the field's free space);
+    ``route_strays`` the routes planned because the robot strayed. A malformed route (not one or more finite poses) raises
     :class:`NavigationError`.
     """
 
     def __init__(self, config: ControllerConfig = ControllerConfig(), crawl: CrawlConfig | None = CrawlConfig(),
-                 max_gap: float = 0.5, route=None, route_tolerance: float = 0.15):
+                 max_gap: float = 0.5, route=None, route_tolerance: float = 0.15, route_deviation: float = 0.3):
         self.config = config
         self.guard = CrawlGuard(crawl) if crawl is not None else None
         if route is not None and not callable(route):
@@ -305,14 +312,23 @@ class Tracker:
         self.route_tolerance = float(route_tolerance)
         if not (math.isfinite(self.route_tolerance) and self.route_tolerance > 0):
             raise NavigationError(f"route_tolerance must be a positive finite number, got {route_tolerance!r}")
+        try:
+            self.route_deviation = float(route_deviation)
+        except (TypeError, ValueError):
+            self.route_deviation = math.nan
+        if not (math.isfinite(self.route_deviation) and self.route_deviation >= 0):
+            raise NavigationError(f"route_deviation must be a finite number >= 0, got {route_deviation!r}")
         self._target = None  # the caller's current field the route leads to
         self._route: tuple = ()  # its waypoints (x, y, theta), the last one the target's goal pose
         self._route_fields: list = []  # one field per waypoint but the last (built when first tracked)
         self._route_rest = np.zeros(0)  # path length from each waypoint to the route's end
         self._route_i = 0  # the waypoint tracked now
+        self._route_from = (0.0, 0.0)  # the position the route was planned from
+        self._planned_at = -math.inf  # time of the last route planned
         self._failures = 0  # the guard's failures (loops, every route_crawls-th crawl) already answered
         self.routes = 0  #: how many routes were planned
         self.route_misses = 0  #: how often the planner found no route
+        self.route_strays = 0  #: how many routes were planned because the robot strayed from the last one
         if crawl is None:  # never leaves Mode.PLAIN
             self._configs = dict.fromkeys(Mode, config)
         else:
@@ -361,7 +377,7 @@ class Tracker:
         q, th = _pose(pose)  # the controller's pose check, before the guard records the position
         t = float(t)
         if self._route_fn is not None:
-            current, following, beyond = self._routed(q, th, current, following, beyond)
+            current, following, beyond = self._routed(t, q, th, current, following, beyond)
         mode = self.guard.update(t, q, current.goal, th) if self.guard is not None else Mode.PLAIN
         self._mode = mode
         cmd = track_waypoints(pose, current, following, self._configs[mode],
@@ -375,7 +391,7 @@ class Tracker:
         goal pose (empty without a route)."""
         return self._route[self._route_i:]
 
-    def _routed(self, q: np.ndarray, th: float, current: OrientedField, following, beyond: float):
+    def _routed(self, t: float, q: np.ndarray, th: float, current: OrientedField, following, beyond: float):
         """``(current, following, beyond)`` to track: the caller's, or along the route."""
         g = self.guard
         failures = g.loops + g.engagements // g.config.route_crawls
@@ -383,7 +399,10 @@ class Tracker:
             self._target, self._route, self._route_i, self._failures = current, (), 0, failures
         if failures > self._failures:
             self._failures = failures
-            self._plan(q, th, current)
+            self._plan(t, q, th, current)
+        elif self._strayed(t, q):
+            self.route_strays += 1
+            self._plan(t, q, th, current)
         route = self._route
         if not route:
             return current, following, beyond
@@ -403,9 +422,23 @@ class Tracker:
             return current, following, beyond
         return cur, fol, float(self._route_rest[i]) + float(beyond)  # beyond: path length after waypoint i
 
-    def _plan(self, q: np.ndarray, th: float, current: OrientedField) -> None:
+    def _strayed(self, t: float, q: np.ndarray) -> bool:
+        """Whether the robot is farther than ``route_deviation`` from the segment to the route
+        waypoint it tracks (from the pose the route was planned at, or the waypoint before),
+        at least one guard ``window`` after the last route was planned."""
+        i, route = self._route_i, self._route
+        if not (self.route_deviation > 0 and i < len(route) - 1
+                and t - self._planned_at >= self.guard.config.window):
+            return False
+        a = np.array(self._route_from if i == 0 else route[i - 1][:2])
+        ab = np.array(route[i][:2]) - a
+        n2 = float(ab @ ab)
+        u = min(1.0, max(0.0, float((q - a) @ ab) / n2)) if n2 > 0 else 0.0
+        return math.hypot(*(q - a - u * ab)) > self.route_deviation
+
+    def _plan(self, t: float, q: np.ndarray, th: float, current: OrientedField) -> None:
         goal = (float(current.goal[0]), float(current.goal[1]), float(current.heading))
-        self._route, self._route_i = (), 0
+        self._route, self._route_i, self._planned_at = (), 0, t
         wps = self._route_fn((float(q[0]), float(q[1]), th), goal)
         if wps is None:
             self.route_misses += 1
@@ -421,6 +454,7 @@ class Tracker:
         steps = np.hypot(*np.diff(wps[:, :2], axis=0).T)
         self._route_rest = np.concatenate((np.cumsum(steps[::-1])[::-1], [0.0]))
         self._route = tuple(tuple(w) for w in wps)
+        self._route_from = (float(q[0]), float(q[1]))
         self._route_fields = [None] * (len(wps) - 1)
         self.routes += 1
 

@@ -125,6 +125,40 @@ def test_every_third_crawl_engagement_plans_a_route_that_is_tracked_waypoint_by_
     assert t.route == () and len(planner.calls) == 1
 
 
+@pytest.mark.parametrize("deviation", [0.3, 0.0], ids=["default", "off"])
+def test_a_robot_that_strays_from_its_route_gets_a_new_one_from_where_it_is(deviation):
+    """More than ``route_deviation`` (0.3 m) from the segment it follows (from the pose the
+    route was planned at to the next waypoint), at least one guard window after the last
+    route, the tracker plans a new route from the robot's pose (``route_strays``); with 0,
+    never."""
+    world = shared_world("office")
+    cfg = ControllerConfig.from_robot(world.robot)
+    field = _field(world, (6.4, 3.3), 0.0)
+    planner = _Scripted([(3.0, 2.2, 0.0), (5.0, 3.0, 0.5), (9.0, 9.0, 9.0)])
+    crawl = CrawlConfig(window=1.0, hold=1.0, route_crawls=1)
+    t = Tracker(cfg, crawl, route=planner, route_deviation=deviation)
+    k = 0
+    while not planner.calls:  # standing still until a crawl asks for the first route
+        t.command(k * DT, (1.0, 1.0, 0.0), field)
+        k += 1
+    planned_at = (k - 1) * DT
+    a, b = np.array([1.0, 1.0]), np.array([3.0, 2.2])
+    u = (b - a) / np.linalg.norm(b - a)
+    for j in range(1, 16):  # driving along +x at 0.5 m/s (no crawl): away from the segment
+        q = np.array([1.0 + 0.05 * j, 1.0])
+        off = abs(float(u[0] * (q - a)[1] - u[1] * (q - a)[0]))  # distance from the segment's line
+        t.command((k - 1 + j) * DT, (q[0], q[1], 0.0), field)
+        if deviation and off > deviation and (j * DT) >= crawl.window - 1e-9:
+            break
+    assert t.guard.engagements == 1  # no crawl: the planner was asked again only for the stray
+    if deviation:
+        assert len(planner.calls) == 2 and t.route_strays == 1 and t.routes == 2
+        assert planner.calls[1][0][:2] == (q[0], q[1]) and (k - 1 + j) * DT - planned_at >= crawl.window - 1e-9
+        assert t.route[0] == (3.0, 2.2, 0.0)  # the new route, tracked from the start
+    else:
+        assert len(planner.calls) == 1 and t.route_strays == 0
+
+
 def test_a_loop_plans_a_route_and_no_route_leaves_the_callers_field():
     world = shared_world("office")
     cfg = ControllerConfig.from_robot(world.robot)
@@ -161,7 +195,8 @@ def test_a_malformed_route_is_refused(route):
             t.command(k * DT, (1.0, 1.0, 0.0), field)
 
 
-@pytest.mark.parametrize("bad", [{"route": 3}, {"route_tolerance": 0.0}, {"route_tolerance": math.nan}])
+@pytest.mark.parametrize("bad", [{"route": 3}, {"route_tolerance": 0.0}, {"route_tolerance": math.nan},
+                                 {"route_deviation": -0.1}, {"route_deviation": math.inf}, {"route_deviation": "far"}])
 def test_bad_tracker_route_arguments_are_refused(bad):
     with pytest.raises(NavigationError):
         Tracker(**bad)
