@@ -54,7 +54,12 @@ planned at: when the robot strays more than ``route_deviation`` (0.3 m) from the
 follows (from that pose, or the last waypoint passed, to the next waypoint), the tracker plans
 a new route from where it is, at most once per guard ``window`` (3 s): the stand-off, engaged
 by the crawl that asked for the route, can take the robot round a wall out of sight of the next
-waypoint, whose field then leads it about for a minute. The route's fields share the caller's
+waypoint, whose field then leads it about for a minute. Routes alternate their mode (as the
+loop modes do; ``CrawlConfig.route_alternate``): the first route (and every odd-numbered one)
+is followed with the plain controller, every even-numbered one in the guard's mode. The
+stand-off that the crawl asking for a route engages can take the robot away from the route or
+round an obstacle's concave pocket; without it, the robot can crawl along a wall towards a
+waypoint; each failure gets the other remedy next. The route's fields share the caller's
 forest, safety limit and saturation, so every command is still the controller's. Measured in
 docs/control.md, "Route rescue".
 
@@ -121,6 +126,10 @@ class CrawlConfig:
     route_crawls : int
         With a route planner (``Tracker(..., route=...)``): every loop, and every
         ``route_crawls``-th crawl engagement (1: every one), asks for a new route to the goal.
+    route_alternate : bool
+        The first route (and every odd-numbered one) is followed with the plain controller,
+        every even-numbered one in the guard's mode (True); False: every route in the guard's
+        mode.
     """
 
     window: float = 3.0
@@ -137,6 +146,7 @@ class CrawlConfig:
     loop_window: float = 60.0
     turn: float = 0.5
     route_crawls: int = 1
+    route_alternate: bool = True
 
     def __post_init__(self):
         check_numbers(self, ("window", "min_progress", "goal_radius", "hold", "max_gap", "standoff", "loop_heading",
@@ -147,6 +157,8 @@ class CrawlConfig:
         n = self.route_crawls
         if isinstance(n, bool) or not isinstance(n, int) or n < 1:
             raise NavigationError(f"CrawlConfig.route_crawls must be an integer >= 1, got {n!r}")
+        if not isinstance(self.route_alternate, bool):
+            raise NavigationError(f"CrawlConfig.route_alternate must be True or False, got {self.route_alternate!r}")
 
 
 class Mode(IntEnum):
@@ -324,6 +336,7 @@ class Tracker:
         self._route_rest = np.zeros(0)  # path length from each waypoint to the route's end
         self._route_i = 0  # the waypoint tracked now
         self._route_from = (0.0, 0.0)  # the position the route was planned from
+        self._route_plain = False  # the route is followed with the plain controller
         self._planned_at = -math.inf  # time of the last route planned
         self._failures = 0  # the guard's failures (loops, every route_crawls-th crawl) already answered
         self.routes = 0  #: how many routes were planned
@@ -379,6 +392,8 @@ class Tracker:
         if self._route_fn is not None:
             current, following, beyond = self._routed(t, q, th, current, following, beyond)
         mode = self.guard.update(t, q, current.goal, th) if self.guard is not None else Mode.PLAIN
+        if self._route_plain and self._route_i < len(self._route) - 1:
+            mode = Mode.PLAIN  # an odd-numbered route is followed with the plain controller
         self._mode = mode
         cmd = track_waypoints(pose, current, following, self._configs[mode],
                               previous=self._previous(t), beyond=beyond)
@@ -455,6 +470,7 @@ class Tracker:
         self._route_rest = np.concatenate((np.cumsum(steps[::-1])[::-1], [0.0]))
         self._route = tuple(tuple(w) for w in wps)
         self._route_from = (float(q[0]), float(q[1]))
+        self._route_plain = self.guard.config.route_alternate and self.routes % 2 == 0
         self._route_fields = [None] * (len(wps) - 1)
         self.routes += 1
 

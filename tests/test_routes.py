@@ -17,6 +17,7 @@ import pytest
 
 import navigation
 from navigation import CrawlConfig, Tracker
+from navigation.tracker import Mode
 from navigation.control import ControllerConfig
 from navigation.errors import NavigationError, TampError
 from navigation.oriented import OrientedField
@@ -159,6 +160,32 @@ def test_a_robot_that_strays_from_its_route_gets_a_new_one_from_where_it_is(devi
         assert len(planner.calls) == 1 and t.route_strays == 0
 
 
+@pytest.mark.parametrize("alternate", [True, False], ids=["alternate", "guard-mode"])
+def test_odd_numbered_routes_are_followed_with_the_plain_controller(alternate):
+    """``CrawlConfig.route_alternate``: the first route (asked for by a crawl, which engages the
+    stand-off) is followed with the plain controller, the second in the guard's mode; the
+    caller's field after a route is tracked in the guard's mode again. Off: every route in the
+    guard's mode."""
+    world = shared_world("office")
+    cfg = ControllerConfig.from_robot(world.robot)
+    field = _field(world, (6.4, 3.3), 0.0)
+    planner = _Scripted([(3.0, 2.2, 0.0), (9.0, 9.0, 9.0)])
+    t = Tracker(cfg, CrawlConfig(window=1.0, hold=2.0, route_crawls=1, route_alternate=alternate), route=planner)
+    k, modes = 0, {}
+    pose = (1.0, 1.0, 0.0)  # standing still: a crawl every window, each asking for a route
+    while t.routes < 2:
+        cmd = t.command(k * DT, pose, field)
+        if t.routes:
+            modes.setdefault(t.routes, t.mode)
+            assert t.guard.engaged_until > k * DT  # the crawl engaged the stand-off ...
+            assert cmd == navigation.track_waypoints(pose, t._route_field(0), field, t.config_for(t.mode),
+                                                     beyond=math.dist((3.0, 2.2), (6.4, 3.3)))
+        k += 1
+    assert modes == ({1: Mode.PLAIN, 2: Mode.STANDOFF} if alternate else {1: Mode.STANDOFF, 2: Mode.STANDOFF})
+    t.command(k * DT, (3.0, 2.25, 0.0), field)  # the route's waypoint passed: the caller's field
+    assert t.route == ((6.4, 3.3, 0.0),) and t.mode is Mode.STANDOFF
+
+
 def test_a_loop_plans_a_route_and_no_route_leaves_the_callers_field():
     world = shared_world("office")
     cfg = ControllerConfig.from_robot(world.robot)
@@ -206,6 +233,12 @@ def test_bad_tracker_route_arguments_are_refused(bad):
 def test_bad_route_crawls_is_refused(bad):
     with pytest.raises(NavigationError):
         CrawlConfig(route_crawls=bad)
+
+
+@pytest.mark.parametrize("bad", [1, "yes", None])
+def test_bad_route_alternate_is_refused(bad):
+    with pytest.raises(NavigationError, match="route_alternate"):
+        CrawlConfig(route_alternate=bad)
 
 
 @pytest.mark.parametrize("seed,index", [(21, 26), (25, 18)], ids=["loops-at-a-chain-end", "pinned-in-a-notch"])
