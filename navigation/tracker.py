@@ -310,8 +310,10 @@ class Tracker:
     distance (m) from the followed segment beyond which the route is planned again from the
     robot's pose (0.3; 0 turns it off). ``routes`` and ``route_misses`` count the routes
     planned and the calls that found none (or a waypoint outside the field's free space);
-    ``route_strays`` the routes planned because the robot strayed. A malformed route (not one or more finite poses) raises
-    :class:`NavigationError`.
+    ``route_strays`` the routes planned because the robot strayed. A malformed route (not one
+    or more finite poses) raises :class:`NavigationError`. While the robot follows an
+    odd-numbered route (``CrawlConfig.route_alternate``) :attr:`mode` is :attr:`Mode.PLAIN`
+    whatever the guard says.
     """
 
     def __init__(self, config: ControllerConfig = ControllerConfig(), crawl: CrawlConfig | None = CrawlConfig(),

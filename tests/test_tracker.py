@@ -12,7 +12,8 @@ import pytest
 import navigation
 from navigation import CrawlConfig, CrawlGuard, Tracker
 from navigation.tracker import Mode
-from navigation.control import ESCAPE_BELOW, ESCAPE_SPEED, RATE_LIMITED, ControllerConfig, _band, _direction, track_waypoints
+from navigation.control import (ESCAPE_BELOW, ESCAPE_SPEED, RATE_LIMITED, ControllerConfig, _band, _direction,
+                                track_waypoints)
 from navigation.errors import NavigationError
 from navigation.oriented import OrientedField, wrap_angle
 from tamp.routes import TreeRoutes
