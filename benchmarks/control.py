@@ -29,7 +29,10 @@ mode's bound, ``DV_BOUND`` / ``DOMEGA_BOUND``; 0 expected in that mode). ``--pus
 with the rate-limited mode (``navigation.control.RATE_LIMITED``); the crawl guard
 then engages ``standoff=0.03`` only while the robot crawls. Also the median
 time of one controller step (field, Jacobian, command) with its target <= 2 ms, and the longest
-step (a route's planning and the first field of its waypoints fall on one step).
+step (a route's planning and the first field of its waypoints fall on one step). The
+kernels are compiled (or loaded from numba's cache) before any run (:func:`tamp.run.prepare`),
+so that a first run on a fresh checkout does not time their compilation as a step (about 1.2
+s in each worker's first step otherwise).
 Results: ``<out>/control.json`` and ``<out>/control.md`` (also printed); progress on stderr.
 """
 
@@ -50,7 +53,7 @@ from navigation.tracker import CrawlConfig, Tracker
 from navigation.oriented import OrientedField, wrap_angle
 from service.sim import Simulator
 from tamp.routes import TreeRoutes
-from benchmarks._common import log, machine_info, write_results
+from benchmarks._common import _prepare, log, machine_info, write_results
 from benchmarks.methods import chatter
 from tests.worldgen import random_forest_world, random_free_points
 
@@ -183,6 +186,7 @@ def run(*, quick: bool = False, starts: int = 10, goals: int = 2, n_random: int 
     work = [(name, world, starts, goals, push_forward, standoff, crawl_guard, rate_limited, relax, route)
             for name, world in _worlds(n_random)
             if not quick or name == "simple"]
+    _prepare()  # kernels compiled before any step is timed (forked workers inherit them)
     if jobs > 1:
         from concurrent.futures import ProcessPoolExecutor
         with ProcessPoolExecutor(max_workers=jobs) as pool:
