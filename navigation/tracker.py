@@ -323,22 +323,16 @@ class Tracker:
         if route is not None and not callable(route):
             raise NavigationError(f"route must be a callable (pose, goal) -> waypoints or None, got {route!r}")
         self._route_fn = route if crawl is not None else None
-        self.route_tolerance = float(route_tolerance)
-        if not (math.isfinite(self.route_tolerance) and self.route_tolerance > 0):
-            raise NavigationError(f"route_tolerance must be a positive finite number, got {route_tolerance!r}")
-        try:
-            self.route_deviation = float(route_deviation)
-        except (TypeError, ValueError):
-            self.route_deviation = math.nan
-        if not (math.isfinite(self.route_deviation) and self.route_deviation >= 0):
-            raise NavigationError(f"route_deviation must be a finite number >= 0, got {route_deviation!r}")
+        self.route_tolerance, self.route_deviation = route_tolerance, route_deviation
+        check_numbers(self, ("route_tolerance",), positive=True)
+        check_numbers(self, ("route_deviation",), positive=False)
+        self.route_tolerance, self.route_deviation = float(route_tolerance), float(route_deviation)
         self._target = None  # the caller's current field the route leads to
         self._route: tuple = ()  # its waypoints (x, y, theta), the last one the target's goal pose
         self._route_fields: list = []  # one field per waypoint but the last (built when first tracked)
         self._route_rest = np.zeros(0)  # path length from each waypoint to the route's end
         self._route_i = 0  # the waypoint tracked now
         self._route_from = (0.0, 0.0)  # the position the route was planned from
-        self._route_plain = False  # the route is followed with the plain controller
         self._planned_at = -math.inf  # time of the last route planned
         self._failures = 0  # the guard's failures (loops, every route_crawls-th crawl) already answered
         self.routes = 0  #: how many routes were planned
@@ -394,8 +388,8 @@ class Tracker:
         if self._route_fn is not None:
             current, following, beyond = self._routed(t, q, th, current, following, beyond)
         mode = self.guard.update(t, q, current.goal, th) if self.guard is not None else Mode.PLAIN
-        if self._route_plain and self._route_i < len(self._route) - 1:
-            mode = Mode.PLAIN  # an odd-numbered route is followed with the plain controller
+        if self._on_route() and self.guard.config.route_alternate and self.routes % 2 == 1:
+            mode = Mode.PLAIN  # an odd-numbered route (the one tracked now) with the plain controller
         self._mode = mode
         cmd = track_waypoints(pose, current, following, self._configs[mode],
                               previous=self._previous(t), beyond=beyond)
@@ -407,6 +401,10 @@ class Tracker:
         """The waypoints ``(x, y, theta)`` of the route tracked now, from the current one to the
         goal pose (empty without a route)."""
         return self._route[self._route_i:]
+
+    def _on_route(self) -> bool:
+        """Whether a route waypoint before the goal pose is tracked (not the caller's field)."""
+        return self._route_i < len(self._route) - 1
 
     def _routed(self, t: float, q: np.ndarray, th: float, current: OrientedField, following, beyond: float):
         """``(current, following, beyond)`` to track: the caller's, or along the route."""
@@ -428,7 +426,7 @@ class Tracker:
         while i < last and (q[0] - route[i][0]) ** 2 + (q[1] - route[i][1]) ** 2 < tol2:
             i += 1
         self._route_i = i
-        if i == last:
+        if not self._on_route():
             return current, following, beyond
         try:
             cur = self._route_field(i)
@@ -444,8 +442,7 @@ class Tracker:
         waypoint it tracks (from the pose the route was planned at, or the waypoint before),
         at least one guard ``window`` after the last route was planned."""
         i, route = self._route_i, self._route
-        if not (self.route_deviation > 0 and i < len(route) - 1
-                and t - self._planned_at >= self.guard.config.window):
+        if not (self.route_deviation > 0 and self._on_route() and t - self._planned_at >= self.guard.config.window):
             return False
         a = np.array(self._route_from if i == 0 else route[i - 1][:2])
         ab = np.array(route[i][:2]) - a
@@ -472,7 +469,6 @@ class Tracker:
         self._route_rest = np.concatenate((np.cumsum(steps[::-1])[::-1], [0.0]))
         self._route = tuple(tuple(w) for w in wps)
         self._route_from = (float(q[0]), float(q[1]))
-        self._route_plain = self.guard.config.route_alternate and self.routes % 2 == 0
         self._route_fields = [None] * (len(wps) - 1)
         self.routes += 1
 
