@@ -53,7 +53,8 @@ from navigation.tracker import CrawlConfig, Tracker
 from navigation.oriented import OrientedField, wrap_angle
 from service.sim import Simulator
 from tamp.routes import TreeRoutes
-from benchmarks._common import _prepare, log, machine_info, write_results
+from tamp.run import prepare
+from benchmarks._common import log, machine_info, write_results
 from benchmarks.methods import chatter
 from tests.worldgen import random_forest_world, random_free_points
 
@@ -186,7 +187,7 @@ def run(*, quick: bool = False, starts: int = 10, goals: int = 2, n_random: int 
     work = [(name, world, starts, goals, push_forward, standoff, crawl_guard, rate_limited, relax, route)
             for name, world in _worlds(n_random)
             if not quick or name == "simple"]
-    _prepare()  # kernels compiled before any step is timed (forked workers inherit them)
+    prepare()  # kernels compiled before any step is timed (forked workers inherit them)
     if jobs > 1:
         from concurrent.futures import ProcessPoolExecutor
         with ProcessPoolExecutor(max_workers=jobs) as pool:
