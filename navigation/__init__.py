@@ -17,7 +17,7 @@ while the robot crawls). Later layers own perception
 (``perception``), missions (``tamp``) and the bus (``service``).
 """
 
-from .control import Command, ControllerConfig, track, track_waypoints
+from .control import Command, ControllerConfig, track, track_point, track_waypoints
 from .descent import DescentResult, descend, descend_many
 from .errors import (
     ForestError,
@@ -63,5 +63,6 @@ __all__ = [
     "descend_many",
     "load_world",
     "track",
+    "track_point",
     "track_waypoints",
 ]

@@ -192,6 +192,13 @@ Choices where the paper is silent or loose, and why:
   12.6 micrometres below a wall, in the notch of two grown obstacles, for 100 s).
   At the goal itself ``theta_gamma = theta_G``. Non-finite poses raise
   :class:`~navigation.errors.NavigationError`; commands are always finite.
+* **Pursuit of a point (not in the paper; :func:`track_point`).** Eq. 24 with the bearing
+  ``atan2(p - q)`` of a point as ``theta_gamma`` (its gradient ``(d_y, -d_x) / |d|^2``,
+  ``d = p - q``, exact) and ``tanh(|p - q| + beyond)`` as the speed factor; the heading gate,
+  safety limit (of a given field's grown obstacles), escape band, saturation and rate limit
+  are those above. :class:`~navigation.tracker.Tracker` pursues the inner waypoints of a rescue
+  route this way, along the route's collision-free segments, where the waypoints' own fields
+  can run in the same trenches as the field that failed (docs/control.md, "Route rescue").
 
 A controller step is a pure function of the pose and the waypoint fields: one field
 evaluation (two with a following waypoint), about a millisecond at 20 obstacles. With the
@@ -212,7 +219,7 @@ import numpy as np
 from .errors import NavigationError, check_numbers
 from .oriented import BoundaryFrame, OrientedField, wrap_angle
 
-__all__ = ["ControllerConfig", "Command", "track", "track_waypoints", "switch_weight", "safe_speed",
+__all__ = ["ControllerConfig", "Command", "track", "track_waypoints", "track_point", "switch_weight", "safe_speed",
            "safety_limit", "stopping_distance", "SAFETY_HORIZON", "RATE_LIMITED"]
 
 RELAX_ROOM = 10.0  #: the relaxation step is at most this many times the clearance (see the module doc)
@@ -783,6 +790,49 @@ def track(pose, field: OrientedField, config: ControllerConfig = ControllerConfi
     tg, grad, speed, away = _direction(q, field, config, band, beyond, room)
     return _command(theta, tg, grad, speed, room, config,
                     _approach_limit(theta, (band,), config), previous, away, _turn_share((band,), config))
+
+
+def track_point(pose, point, field: OrientedField, config: ControllerConfig = ControllerConfig(),
+                previous=None, beyond: float = 0.0) -> Command:
+    """Eq. 24 on the bearing of a visible ``point (2,)`` instead of a field's direction.
+
+    ``theta_gamma = atan2(p - q)``, its gradient exact (``(d_y, -d_x) / |d|^2`` for
+    ``d = p - q``), the speed factor ``tanh(|p - q| + beyond)``; the heading gate, saturation,
+    safety limit (on ``field``'s grown obstacles and workspace), escape band (``field``'s
+    ``Upsilon``) and rate limit exactly as :func:`track`. Not in the paper: the route rescue of
+    :class:`~navigation.tracker.Tracker` uses it for the straight segments of a route whose
+    fields run the long way round (module doc there). The safety limit alone keeps the robot
+    off the boundaries: a point that is not visible is approached until the robot stops.
+
+    Raises
+    ------
+    NavigationError
+        Non-finite or malformed pose, point, previous command or ``beyond``.
+    """
+    q, theta = _pose(pose)
+    beyond = _beyond(beyond)
+    try:
+        p = np.asarray(point, dtype=float).reshape(2)
+    except (TypeError, ValueError):
+        p = np.full(2, math.nan)
+    if not np.all(np.isfinite(p)):
+        raise NavigationError(f"point must be a finite position (x, y), got {point!r}")
+    room = _clearance(q, (field,), config)
+    away = float(field.evaluate(q).angle)
+    tg, grad, dist = _bearing(q, p)
+    if tg is None:  # on the point: hold the heading
+        tg = theta
+    return _command(theta, tg, grad, math.tanh(dist + beyond), room, config, math.inf, previous, away)
+
+
+def _bearing(q: np.ndarray, p: np.ndarray) -> tuple[float | None, np.ndarray, float]:
+    """``(atan2(p - q), its exact gradient in q, |p - q|)``; the angle ``None`` (gradient 0)
+    within 1e-12 m of ``p``. With ``d = p - q``: ``grad = (d_y, -d_x) / |d|^2``."""
+    d = p - q
+    r2 = float(d @ d)
+    if not r2 > 1e-24:
+        return None, np.zeros(2), math.sqrt(r2)
+    return math.atan2(d[1], d[0]), np.array([d[1], -d[0]]) / r2, math.sqrt(r2)
 
 
 def _beyond(beyond) -> float:

@@ -44,23 +44,26 @@ With a *route planner* (``Tracker(config, crawl, route=planner)``, a callable ``
 goal_pose)`` returning oriented waypoints ending at the goal pose, or ``None``;
 :class:`tamp.routes.TreeRoutes` plans the harmonic tree of paper 001 eq. 7-8, 26, the way the
 executive guides a mission) the tracker answers every loop and every crawl engagement (every
-``route_crawls``-th, 1 by default) with a new route from the robot's pose: it tracks the
-route's waypoints one field each (a navigation function on the caller's forest, built when
-first tracked) with eq. 25's switch to the next one, passes a waypoint within ``route_tolerance`` (0.15 m), and hands
-over to the caller's field (and its ``following``) for the last one, the goal pose. The guard
-keeps watching (its goal is the tracked waypoint), so a route that fails too is replaced by the
-next one; a new goal from the caller drops the route. A route is a plan from the pose it was
-planned at: when the robot strays more than ``route_deviation`` (0.3 m) from the segment it
+``route_crawls``-th, 1 by default) with a new route from the robot's pose. It *pursues* the
+route's inner waypoints one after the other (``CrawlConfig.route_pursuit``, the default): eq. 24
+on the bearing of the waypoint (:func:`~navigation.control.track_point`, the heading gate, the
+safety limit of the caller's forest, the saturation and the rate limit as for a field), i.e.
+along the tree's straight segments, which are collision-free at the buffer they were planned
+with; it passes a waypoint within ``route_tolerance`` (0.15 m) and hands over to the caller's
+field (and its ``following``) for the last one, the goal pose. The route is asked for because
+the field fails here, and a waypoint's own navigation function fails the same way: its flow
+can run along the same trench, round the obstacle the long way (random1 start 35: every
+waypoint's field led the robot into the channel between an X of two bars and the workspace
+boundary, with the direction reversing across the channel, docs/control.md "Route rescue").
+With ``route_pursuit=False`` each waypoint is tracked with its own field (a navigation function
+on the caller's forest, built when first tracked) and eq. 25's switch to the next one, and the
+routes alternate their mode (``CrawlConfig.route_alternate``): the first route (and every
+odd-numbered one) with the plain controller, every even-numbered one in the guard's mode. The
+guard keeps watching (its goal is the tracked waypoint), so a route that fails too is replaced
+by the next one; a new goal from the caller drops the route. A route is a plan from the pose it
+was planned at: when the robot strays more than ``route_deviation`` (0.3 m) from the segment it
 follows (from that pose, or the last waypoint passed, to the next waypoint), the tracker plans
-a new route from where it is, at most once per guard ``window`` (3 s): the stand-off, engaged
-by the crawl that asked for the route, can take the robot round a wall out of sight of the next
-waypoint, whose field then leads it about for a minute. Routes alternate their mode (as the
-loop modes do; ``CrawlConfig.route_alternate``): the first route (and every odd-numbered one)
-is followed with the plain controller, every even-numbered one in the guard's mode. The
-stand-off that the crawl asking for a route engages can take the robot away from the route or
-round an obstacle's concave pocket; without it, the robot can crawl along a wall towards a
-waypoint; each failure gets the other remedy next. The route's fields share the caller's
-forest, safety limit and saturation, so every command is still the controller's. Measured in
+a new route from where it is, at most once per guard ``window`` (3 s). Measured in
 docs/control.md, "Route rescue".
 
 Not in the paper: paper 001 tracks the field with eq. 24 alone. This is a supervisor around it
@@ -77,7 +80,7 @@ from enum import IntEnum
 
 import numpy as np
 
-from .control import Command, ControllerConfig, _horizon, _pose, track_waypoints
+from .control import Command, ControllerConfig, _horizon, _pose, track_point, track_waypoints
 from .errors import NavigationError, check_numbers
 from .oriented import OrientedField
 from .potential import NavigationFunction
@@ -126,10 +129,16 @@ class CrawlConfig:
     route_crawls : int
         With a route planner (``Tracker(..., route=...)``): every loop, and every
         ``route_crawls``-th crawl engagement (1: every one), asks for a new route to the goal.
+    route_pursuit : bool
+        Each inner waypoint of a route is *pursued*: eq. 24 on the bearing of the waypoint
+        (:func:`~navigation.control.track_point`), along the route's straight, collision-free
+        segments (True); False: tracked with a field of its own and eq. 25's switch, in the
+        mode ``route_alternate`` chooses. Either way the goal pose at the route's end is
+        tracked with the caller's field.
     route_alternate : bool
-        The first route (and every odd-numbered one) is followed with the plain controller,
-        every even-numbered one in the guard's mode (True); False: every route in the guard's
-        mode.
+        Without ``route_pursuit``: the first route (and every odd-numbered one) is followed
+        with the plain controller, every even-numbered one in the guard's mode (True); False:
+        every route in the guard's mode.
     """
 
     window: float = 3.0
@@ -146,6 +155,7 @@ class CrawlConfig:
     loop_window: float = 60.0
     turn: float = 0.5
     route_crawls: int = 1
+    route_pursuit: bool = True
     route_alternate: bool = True
 
     def __post_init__(self):
@@ -157,8 +167,9 @@ class CrawlConfig:
         n = self.route_crawls
         if isinstance(n, bool) or not isinstance(n, int) or n < 1:
             raise NavigationError(f"CrawlConfig.route_crawls must be an integer >= 1, got {n!r}")
-        if not isinstance(self.route_alternate, bool):
-            raise NavigationError(f"CrawlConfig.route_alternate must be True or False, got {self.route_alternate!r}")
+        for name in ("route_pursuit", "route_alternate"):
+            if not isinstance(getattr(self, name), bool):
+                raise NavigationError(f"CrawlConfig.{name} must be True or False, got {getattr(self, name)!r}")
 
 
 class Mode(IntEnum):
@@ -311,9 +322,10 @@ class Tracker:
     robot's pose (0.3; 0 turns it off). ``routes`` and ``route_misses`` count the routes
     planned and the calls that found none (or a waypoint outside the field's free space);
     ``route_strays`` the routes planned because the robot strayed. A malformed route (not one
-    or more finite poses) raises :class:`NavigationError`. While the robot follows an
-    odd-numbered route (``CrawlConfig.route_alternate``) :attr:`mode` is :attr:`Mode.PLAIN`
-    whatever the guard says.
+    or more finite poses) raises :class:`NavigationError`. While the robot pursues a route
+    waypoint (``CrawlConfig.route_pursuit``), or follows an odd-numbered route with fields
+    (``CrawlConfig.route_alternate``), :attr:`mode` is :attr:`Mode.PLAIN` whatever the guard
+    says.
     """
 
     def __init__(self, config: ControllerConfig = ControllerConfig(), crawl: CrawlConfig | None = CrawlConfig(),
@@ -332,6 +344,7 @@ class Tracker:
         self._route_fields: list = []  # one field per waypoint but the last (built when first tracked)
         self._route_rest = np.zeros(0)  # path length from each waypoint to the route's end
         self._route_i = 0  # the waypoint tracked now
+        self._route_free = -1  # the last waypoint found in free space (pursuit)
         self._route_from = (0.0, 0.0)  # the position the route was planned from
         self._planned_at = -math.inf  # time of the last route planned
         self._failures = 0  # the guard's failures (loops, every route_crawls-th crawl) already answered
@@ -385,14 +398,21 @@ class Tracker:
         after ``current``'s goal, :func:`~navigation.control.track`)."""
         q, th = _pose(pose)  # the controller's pose check, before the guard records the position
         t = float(t)
+        point = None  # a route waypoint pursued along the straight segment
         if self._route_fn is not None:
-            current, following, beyond = self._routed(t, q, th, current, following, beyond)
-        mode = self.guard.update(t, q, current.goal, th) if self.guard is not None else Mode.PLAIN
-        if self._on_route() and self.guard.config.route_alternate and self.routes % 2 == 1:
+            current, following, beyond, point = self._routed(t, q, th, current, following, beyond)
+        goal = current.goal if point is None else point
+        mode = self.guard.update(t, q, goal, th) if self.guard is not None else Mode.PLAIN
+        if point is not None:
+            mode = Mode.PLAIN  # the bearing has no stand-off
+        elif self._on_route() and self.guard.config.route_alternate and self.routes % 2 == 1:
             mode = Mode.PLAIN  # an odd-numbered route (the one tracked now) with the plain controller
         self._mode = mode
-        cmd = track_waypoints(pose, current, following, self._configs[mode],
-                              previous=self._previous(t), beyond=beyond)
+        if point is not None:
+            cmd = track_point(pose, point, current, self.config, previous=self._previous(t), beyond=beyond)
+        else:
+            cmd = track_waypoints(pose, current, following, self._configs[mode],
+                                  previous=self._previous(t), beyond=beyond)
         self._sent = (t, cmd.v, cmd.omega)
         return cmd
 
@@ -407,7 +427,10 @@ class Tracker:
         return self._route_i < len(self._route) - 1
 
     def _routed(self, t: float, q: np.ndarray, th: float, current: OrientedField, following, beyond: float):
-        """``(current, following, beyond)`` to track: the caller's, or along the route."""
+        """``(current, following, beyond, point)`` to track: the caller's (``point`` None), or
+        along the route: with ``CrawlConfig.route_pursuit`` the caller's field (for the safety
+        limit), ``None``, the path length after the waypoint and the waypoint's position;
+        otherwise the waypoint's field, the next one's and the path length after it."""
         g = self.guard
         failures = g.loops + g.engagements // g.config.route_crawls
         if current is not self._target:  # a new goal: forget the route and the failures so far
@@ -420,22 +443,30 @@ class Tracker:
             self._plan(t, q, th, current)
         route = self._route
         if not route:
-            return current, following, beyond
+            return current, following, beyond, None
         i, last = self._route_i, len(route) - 1
         tol2 = self.route_tolerance ** 2
         while i < last and (q[0] - route[i][0]) ** 2 + (q[1] - route[i][1]) ** 2 < tol2:
             i += 1
         self._route_i = i
         if not self._on_route():
-            return current, following, beyond
+            return current, following, beyond, None
+        rest = float(self._route_rest[i]) + float(beyond)  # path length after waypoint i
         try:
+            if self.guard.config.route_pursuit:
+                point = np.array(route[i][:2])
+                if i > self._route_free:  # each waypoint checked once, when first pursued
+                    if not bool(current.evaluate(point).free):
+                        raise NavigationError(f"route waypoint {route[i]} is outside the free space")
+                    self._route_free = i
+                return current, None, rest, point
             cur = self._route_field(i)
             fol = self._route_field(i + 1) if i + 1 < last else current
         except NavigationError:  # a waypoint outside the field's free space: drop the route
             self._route, self._route_i = (), 0
             self.route_misses += 1
-            return current, following, beyond
-        return cur, fol, float(self._route_rest[i]) + float(beyond)  # beyond: path length after waypoint i
+            return current, following, beyond, None
+        return cur, fol, rest, None
 
     def _strayed(self, t: float, q: np.ndarray) -> bool:
         """Whether the robot is farther than ``route_deviation`` from the segment to the route
@@ -470,6 +501,7 @@ class Tracker:
         self._route = tuple(tuple(w) for w in wps)
         self._route_from = (float(q[0]), float(q[1]))
         self._route_fields = [None] * (len(wps) - 1)
+        self._route_free = -1
         self.routes += 1
 
     def _route_field(self, i: int) -> OrientedField:

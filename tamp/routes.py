@@ -5,8 +5,9 @@ eq. 7-8, 26) on roadmaps of decreasing safety buffer.
 the field's integral curves can run in millimetre-wide trenches that the unicycle cannot follow
 (docs/control.md, "Route rescue"): the robot then loops or keeps crawling. When its guard sees
 that, the tracker asks a *route planner* for oriented waypoints from its pose to the goal and
-tracks them, one field per waypoint with eq. 25's switch, as the executive does with the
-harmonic trees of a mission (paper 001 section 4.1.4). :class:`TreeRoutes` is that planner:
+pursues them along the tree's straight segments (or, with ``CrawlConfig(route_pursuit=False)``,
+tracks them one field per waypoint with eq. 25's switch, as the executive does with the
+harmonic trees of a mission, paper 001 section 4.1.4). :class:`TreeRoutes` is that planner:
 :func:`tamp.plan_tree` on the visibility roadmap of the world (:class:`tamp.Roadmap`), at the
 paper's buffer of 0.15 m first, then at 0.03 m (the executive's ``fallback_buffer``: passages
 narrower than the paper's buffer allows), then at 0 (a robot held by the safety limit within

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import navigation
-from navigation.control import (CONTACT_MARGIN, ESCAPE_BELOW, ESCAPE_SPEED, EXACT_BELOW, RATE_LIMITED, ControllerConfig, _relaxed, safe_speed,
+from navigation.control import (CONTACT_MARGIN, ESCAPE_BELOW, ESCAPE_SPEED, EXACT_BELOW, RATE_LIMITED, ControllerConfig, _bearing, _relaxed, safe_speed,
                                 stopping_distance, switch_weight, track, track_waypoints)
 from navigation.errors import NavigationError
 from navigation.oriented import OrientedField, wrap_angle
@@ -647,3 +647,47 @@ def test_a_robot_on_or_inside_a_grown_boundary_creeps_out_only_facing_away():
     assert 0.0 < float(field.clearance(p)) < 1e-3
     cmd = track((p[0], p[1], float(field.evaluate(p).angle)), field, cfg)
     assert cmd.v == pytest.approx(ESCAPE_SPEED, rel=1e-6)
+
+
+def test_bearing_gradient_matches_finite_differences():
+    """``track_point``'s direction ``atan2(p - q)`` and its exact gradient in ``q``."""
+    rng = np.random.default_rng(21)
+    p = np.array([1.3, -0.4])
+    h = 1e-6
+    for q in rng.uniform(-3, 3, size=(200, 2)):
+        tg, grad, dist = _bearing(q, p)
+        assert tg == math.atan2(p[1] - q[1], p[0] - q[0]) and dist == pytest.approx(math.dist(p, q))
+        fd = np.array([wrap_angle(_bearing(q + e, p)[0] - _bearing(q - e, p)[0]) / (2 * h) for e in np.eye(2) * h])
+        assert np.allclose(fd, grad, rtol=1e-6, atol=1e-6 / max(dist, 1e-3))
+    assert _bearing(p, p)[0] is None and not np.any(_bearing(p, p)[1])
+
+
+def test_track_point_is_eq_24_on_the_bearing_within_the_safety_limit():
+    """At random ``office`` poses the command towards a point is eq. 24 with the bearing as the
+    tracked direction (heading gate, speed factor ``tanh(|p - q| + beyond)``, the bearing's
+    feed-forward), saturated, with ``v`` within the safety limit of ``field``'s grown
+    obstacles; finite on the point itself; bad points refused."""
+    world = shared_world("office")
+    cfg = ControllerConfig.from_robot(world.robot)
+    field = OrientedField(navigation.NavigationFunction(world, goal=(6.4, 3.3), inflation=world.robot.radius), 0.4)
+    rng = np.random.default_rng(5)
+    point = np.array([3.0, 2.2])
+    pts = random_free_points(world, 150, rng, margin=world.robot.radius + 0.01)
+    pts = pts[[field.clearance.exact(q) > 0.005 for q in pts]]  # the grown squircles, outside the escape band
+    assert len(pts) > 100
+    for q in pts:
+        theta = float(rng.uniform(-math.pi, math.pi))
+        cmd = navigation.track_point((q[0], q[1], theta), point, field, cfg, beyond=0.7)
+        tg, grad, dist = _bearing(q, point)
+        err = wrap_angle(theta - tg)
+        v = min(cfg.k_v * math.tanh(dist + 0.7) * max(0.0, math.cos(err)), cfg.v_max)
+        assert cmd.theta_gamma == tg and math.isfinite(cmd.omega) and abs(cmd.omega) <= cfg.omega_max
+        assert cmd.v <= min(v, navigation.control.safety_limit(q, (field,), cfg)) + 1e-12
+        if cmd.v == v:  # away from boundaries: eq. 24 exactly
+            w = -cfg.k_omega * err + v * (grad[0] * math.cos(theta) + grad[1] * math.sin(theta))
+            assert cmd.omega == pytest.approx(min(max(w, -cfg.omega_max), cfg.omega_max), abs=1e-12)
+    on = navigation.track_point((3.0, 2.2, 0.3), point, field, cfg)
+    assert on.v == 0.0 and on.omega == 0.0 and on.theta_gamma == 0.3
+    for bad in [(math.nan, 1.0), (1.0,), "here", (1.0, 2.0, 3.0)]:
+        with pytest.raises(NavigationError, match="point"):
+            navigation.track_point((1.0, 1.0, 0.0), bad, field, cfg)

@@ -112,9 +112,11 @@ def test_every_third_crawl_engagement_plans_a_route_that_is_tracked_waypoint_by_
     assert len(planner.calls) == 1 and t.routes == 1
     assert planner.calls[0][1] == (6.4, 3.3, 0.0)
     assert t.route == ((3.0, 2.2, 0.0), (5.0, 3.0, 0.5), (6.4, 3.3, 0.0))
-    # the command is eq. 25 between the first two waypoints, beyond = the rest of the route
-    cur = t._route_field(0)
-    assert np.allclose(cur.goal, (3.0, 2.2)) and cur.heading == 0.0
+    # the command pursues the first waypoint (route_pursuit), beyond = the rest of the route
+    rest = math.dist((3.0, 2.2), (5.0, 3.0)) + math.dist((5.0, 3.0), (6.4, 3.3))
+    assert t.command(k * DT, (1.0, 1.0, 0.0), field) == navigation.track_point(
+        (1.0, 1.0, 0.0), (3.0, 2.2), field, cfg, beyond=rest)
+    assert t.mode is Mode.PLAIN
     # within route_tolerance of a waypoint the next one is tracked; the last is the caller's field
     t.command((k + 1) * DT, (3.05, 2.2, 0.0), field)
     assert t.route[0] == (5.0, 3.0, 0.5)
@@ -162,7 +164,8 @@ def test_a_robot_that_strays_from_its_route_gets_a_new_one_from_where_it_is(devi
 
 @pytest.mark.parametrize("alternate", [True, False], ids=["alternate", "guard-mode"])
 def test_odd_numbered_routes_are_followed_with_the_plain_controller(alternate):
-    """``CrawlConfig.route_alternate``: the first route (asked for by a crawl, which engages the
+    """``CrawlConfig.route_alternate`` (routes tracked with fields, ``route_pursuit=False``):
+    the first route (asked for by a crawl, which engages the
     stand-off) is followed with the plain controller, the second in the guard's mode; the
     caller's field after a route is tracked in the guard's mode again. Off: every route in the
     guard's mode."""
@@ -170,7 +173,8 @@ def test_odd_numbered_routes_are_followed_with_the_plain_controller(alternate):
     cfg = ControllerConfig.from_robot(world.robot)
     field = _field(world, (6.4, 3.3), 0.0)
     planner = _Scripted([(3.0, 2.2, 0.0), (9.0, 9.0, 9.0)])
-    t = Tracker(cfg, CrawlConfig(window=1.0, hold=2.0, route_crawls=1, route_alternate=alternate), route=planner)
+    t = Tracker(cfg, CrawlConfig(window=1.0, hold=2.0, route_crawls=1, route_pursuit=False, route_alternate=alternate),
+                route=planner)
     k, modes = 0, {}
     pose = (1.0, 1.0, 0.0)  # standing still: a crawl every window, each asking for a route
     while t.routes < 2:
@@ -235,10 +239,11 @@ def test_bad_route_crawls_is_refused(bad):
         CrawlConfig(route_crawls=bad)
 
 
+@pytest.mark.parametrize("name", ["route_pursuit", "route_alternate"])
 @pytest.mark.parametrize("bad", [1, "yes", None])
-def test_bad_route_alternate_is_refused(bad):
-    with pytest.raises(NavigationError, match="route_alternate"):
-        CrawlConfig(route_alternate=bad)
+def test_bad_route_flags_are_refused(name, bad):
+    with pytest.raises(NavigationError, match=name):
+        CrawlConfig(**{name: bad})
 
 
 @pytest.mark.parametrize("seed,index", [(21, 26), (25, 18)], ids=["loops-at-a-chain-end", "pinned-in-a-notch"])
@@ -258,4 +263,23 @@ def test_a_route_rescues_a_run_the_guard_alone_loses(seed, index):
     reached, sim = run_closed_loop(world, field, start, cfg, max_steps=1200, tracker=tracker)
     assert reached, f"ended at {sim.pose} after {sim.time:.1f} s"
     assert tracker.routes >= 1
+
+
+def test_a_route_pursued_along_its_segments_rescues_a_run_its_fields_lose():
+    """random1 start 35 of the slow test's sampling: the caller's field leads the robot into
+    the channel between an X of two bars and the workspace boundary, and every route waypoint's
+    field does the same (their flow runs along the boundary, the long way round, with its
+    direction reversing across the channel): with the routes tracked by their fields
+    (``route_pursuit=False``) the robot turns back and forth there until the 120 s limit. Pursued
+    along the route's straight segments it reaches the goal pose, touching nothing."""
+    world, field, start = _slow_test_case(1, 35)
+    cfg = ControllerConfig.from_robot(world.robot)
+    routes = TreeRoutes(world)
+    fields = Tracker(cfg, CrawlConfig(route_pursuit=False), route=routes)
+    reached, _ = run_closed_loop(world, field, start, cfg, max_steps=1200, tracker=fields)
+    assert not reached and fields.routes >= 2  # the failure the case is for
+    tracker = Tracker(cfg, route=routes)
+    reached, sim = run_closed_loop(world, field, start, cfg, max_steps=1200, tracker=tracker)
+    assert reached, f"ended at {sim.pose} after {sim.time:.1f} s"
+    assert tracker.routes >= 1 and sim.metrics.min_clearance > 0.0
     assert sim.metrics.min_clearance > 0.0 and not sim.metrics.collisions
