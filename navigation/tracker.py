@@ -50,7 +50,9 @@ on the bearing of the waypoint (:func:`~navigation.control.track_point`, the hea
 safety limit of the caller's forest, the saturation and the rate limit as for a field), i.e.
 along the tree's straight segments, which are collision-free at the buffer they were planned
 with; it passes a waypoint within ``route_tolerance`` (0.15 m) and hands over to the caller's
-field (and its ``following``) for the last one, the goal pose. The route is asked for because
+field (and its ``following``) for the last one, the goal pose, once the robot has come within
+``route_goal`` (0.5 m) of it (a route can be the goal pose alone: the goal is in sight, but the
+caller's field takes the robot round in circles in a narrow passage). The route is asked for because
 the field fails here, and a waypoint's own navigation function fails the same way: its flow
 can run along the same trench, round the obstacle the long way (random1 start 35: every
 waypoint's field led the robot into the channel between an X of two bars and the workspace
@@ -319,7 +321,10 @@ class Tracker:
     waypoints or None``; ``route_tolerance``: the distance (m) within which a route waypoint
     counts as passed (0.15, the executive's ``waypoint_tolerance``); ``route_deviation``: the
     distance (m) from the followed segment beyond which the route is planned again from the
-    robot's pose (0.3; 0 turns it off). ``routes`` and ``route_misses`` count the routes
+    robot's pose (0.3; 0 turns it off); ``route_goal``: with ``CrawlConfig.route_pursuit`` the
+    route's last waypoint, the goal pose, is pursued too until the robot first comes within
+    this distance (m) of it, and only then tracked with the caller's field (0.5; 0: the field
+    for the whole last segment). ``routes`` and ``route_misses`` count the routes
     planned and the calls that found none (or a waypoint outside the field's free space);
     ``route_strays`` the routes planned because the robot strayed. A malformed route (not one
     or more finite poses) raises :class:`NavigationError`. While the robot pursues a route
@@ -329,22 +334,25 @@ class Tracker:
     """
 
     def __init__(self, config: ControllerConfig = ControllerConfig(), crawl: CrawlConfig | None = CrawlConfig(),
-                 max_gap: float = 0.5, route=None, route_tolerance: float = 0.15, route_deviation: float = 0.3):
+                 max_gap: float = 0.5, route=None, route_tolerance: float = 0.15, route_deviation: float = 0.3,
+                 route_goal: float = 0.5):
         self.config = config
         self.guard = CrawlGuard(crawl) if crawl is not None else None
         if route is not None and not callable(route):
             raise NavigationError(f"route must be a callable (pose, goal) -> waypoints or None, got {route!r}")
         self._route_fn = route if crawl is not None else None
-        self.route_tolerance, self.route_deviation = route_tolerance, route_deviation
+        self.route_tolerance, self.route_deviation, self.route_goal = route_tolerance, route_deviation, route_goal
         check_numbers(self, ("route_tolerance",), positive=True)
-        check_numbers(self, ("route_deviation",), positive=False)
+        check_numbers(self, ("route_deviation", "route_goal"), positive=False)
         self.route_tolerance, self.route_deviation = float(route_tolerance), float(route_deviation)
+        self.route_goal = float(route_goal)
         self._target = None  # the caller's current field the route leads to
         self._route: tuple = ()  # its waypoints (x, y, theta), the last one the target's goal pose
         self._route_fields: list = []  # one field per waypoint but the last (built when first tracked)
         self._route_rest = np.zeros(0)  # path length from each waypoint to the route's end
         self._route_i = 0  # the waypoint tracked now
         self._route_free = -1  # the last waypoint found in free space (pursuit)
+        self._goal_near = False  # the robot came within route_goal of the route's goal pose
         self._route_from = (0.0, 0.0)  # the position the route was planned from
         self._planned_at = -math.inf  # time of the last route planned
         self._failures = 0  # the guard's failures (loops, every route_crawls-th crawl) already answered
@@ -450,6 +458,8 @@ class Tracker:
             i += 1
         self._route_i = i
         if not self._on_route():
+            if self._pursue_goal(q):
+                return current, None, float(beyond), np.array(route[i][:2])
             return current, following, beyond, None
         rest = float(self._route_rest[i]) + float(beyond)  # path length after waypoint i
         try:
@@ -467,6 +477,15 @@ class Tracker:
             self.route_misses += 1
             return current, following, beyond, None
         return cur, fol, rest, None
+
+    def _pursue_goal(self, q: np.ndarray) -> bool:
+        """Whether the route's goal position is pursued: with ``route_pursuit``, until the robot
+        first comes within ``route_goal`` of it (then the caller's field, for the heading)."""
+        if self._goal_near or not (self.route_goal > 0 and self.guard.config.route_pursuit):
+            return False
+        g = self._route[-1]
+        self._goal_near = (q[0] - g[0]) ** 2 + (q[1] - g[1]) ** 2 <= self.route_goal ** 2
+        return not self._goal_near
 
     def _strayed(self, t: float, q: np.ndarray) -> bool:
         """Whether the robot is farther than ``route_deviation`` from the segment to the route
@@ -502,6 +521,7 @@ class Tracker:
         self._route_from = (float(q[0]), float(q[1]))
         self._route_fields = [None] * (len(wps) - 1)
         self._route_free = -1
+        self._goal_near = False
         self.routes += 1
 
     def _route_field(self, i: int) -> OrientedField:

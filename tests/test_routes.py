@@ -18,7 +18,7 @@ import pytest
 import navigation
 from navigation import CrawlConfig, Tracker
 from navigation.tracker import Mode
-from navigation.control import ControllerConfig
+from navigation.control import RATE_LIMITED, ControllerConfig
 from navigation.errors import NavigationError, TampError
 from navigation.oriented import OrientedField
 from tamp.roadmap import segments_clear
@@ -190,6 +190,28 @@ def test_odd_numbered_routes_are_followed_with_the_plain_controller(alternate):
     assert t.route == ((6.4, 3.3, 0.0),) and t.mode is Mode.STANDOFF
 
 
+@pytest.mark.parametrize("reach", [0.5, 0.0], ids=["default", "off"])
+def test_the_goal_of_a_route_is_pursued_until_the_robot_is_near_it(reach):
+    """``route_goal`` (0.5 m): after the route's inner waypoints the goal position is pursued
+    too, until the robot first comes within ``route_goal`` of it; from then on (and with 0,
+    all along) the caller's field leads to the goal pose, even if the robot leaves that disc."""
+    world = shared_world("office")
+    cfg = ControllerConfig.from_robot(world.robot)
+    field = _field(world, (6.4, 3.3), 0.0)
+    planner = _Scripted([(9.0, 9.0, 9.0)])  # the goal pose alone (replaced by the caller's)
+    t = Tracker(cfg, CrawlConfig(window=1.0, hold=1.0, route_crawls=1), route=planner, route_goal=reach)
+    k = 0
+    while not t.routes:
+        t.command(k * DT, (5.0, 2.0, 0.0), field)
+        k += 1
+    for pose, pursued in [((5.0, 2.0, 0.0), True), ((6.1, 3.0, 0.5), False), ((5.0, 2.0, 0.0), False)]:
+        cmd = t.command(k * DT, pose, field)
+        k += 1
+        want = (navigation.track_point(pose, (6.4, 3.3), field, cfg) if pursued and reach
+                else navigation.track_waypoints(pose, field, None, t.config_for(t.mode)))
+        assert cmd == want and t.route == ((6.4, 3.3, 0.0),)
+
+
 def test_a_loop_plans_a_route_and_no_route_leaves_the_callers_field():
     world = shared_world("office")
     cfg = ControllerConfig.from_robot(world.robot)
@@ -227,7 +249,8 @@ def test_a_malformed_route_is_refused(route):
 
 
 @pytest.mark.parametrize("bad", [{"route": 3}, {"route_tolerance": 0.0}, {"route_tolerance": math.nan},
-                                 {"route_deviation": -0.1}, {"route_deviation": math.inf}, {"route_deviation": "far"}])
+                                 {"route_deviation": -0.1}, {"route_deviation": math.inf}, {"route_deviation": "far"},
+                                 {"route_goal": -0.5}, {"route_goal": math.nan}, {"route_goal": None}])
 def test_bad_tracker_route_arguments_are_refused(bad):
     with pytest.raises(NavigationError):
         Tracker(**bad)
@@ -263,6 +286,25 @@ def test_a_route_rescues_a_run_the_guard_alone_loses(seed, index):
     reached, sim = run_closed_loop(world, field, start, cfg, max_steps=1200, tracker=tracker)
     assert reached, f"ended at {sim.pose} after {sim.time:.1f} s"
     assert tracker.routes >= 1
+
+
+def test_a_pursued_route_goal_rescues_a_rate_limited_run_that_circles_in_a_passage():
+    """random13 start 38 of the slow test's sampling, in the rate-limited mode: the robot
+    reaches the narrow passage between the top obstacle group and the workspace boundary, 0.7 m
+    from the goal, where every route is the goal pose alone (the straight line is clear) and
+    the caller's field takes the robot round in circles: with ``route_goal=0`` it times out.
+    Pursuing the goal position until 0.5 m from it, it reaches the goal pose, every command
+    within the rate limit (``run_closed_loop``)."""
+    world, field, start = _slow_test_case(13, 38)
+    cfg = ControllerConfig.from_robot(world.robot, **RATE_LIMITED)
+    routes = TreeRoutes(world)
+    reached, _ = run_closed_loop(world, field, start, cfg, max_steps=1200,
+                                 tracker=Tracker(cfg, route=routes, route_goal=0.0))
+    assert not reached  # the failure the case is for
+    tracker = Tracker(cfg, route=routes)
+    reached, sim = run_closed_loop(world, field, start, cfg, max_steps=1200, tracker=tracker)
+    assert reached, f"ended at {sim.pose} after {sim.time:.1f} s"
+    assert tracker.routes >= 1 and sim.metrics.min_clearance > 0.0
 
 
 def test_a_route_pursued_along_its_segments_rescues_a_run_its_fields_lose():
