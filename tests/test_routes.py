@@ -212,6 +212,40 @@ def test_the_goal_of_a_route_is_pursued_until_the_robot_is_near_it(reach):
         assert cmd == want and t.route == ((6.4, 3.3, 0.0),)
 
 
+def test_a_pursued_waypoint_is_passed_when_the_next_one_is_in_sight():
+    """``Tracker._passable``: within ``route_tolerance`` of a pursued waypoint the robot passes
+    it once the straight segment to the next waypoint is certified clear, or within
+    ``PASS_CLOSE`` of it; a segment through a grown obstacle keeps the waypoint pursued."""
+    world = shared_world("office")
+    field = _field(world, (6.4, 3.3), 0.0)
+    t = Tracker(ControllerConfig.from_robot(world.robot))
+    q = np.array([1.0, 1.0])
+    here = (1.1, 1.05, 0.0)
+    assert t._passable(q, here, (1.5, 1.0, 0.0), field)  # clear (0.095 m at the least)
+    assert not t._passable(q, here, (3.0, 2.2, 0.0), field)  # through a wall
+    assert t._passable(q, (1.0 + 0.9 * navigation.tracker.PASS_CLOSE, 1.0, 0.0), (3.0, 2.2, 0.0), field)
+
+
+def test_a_pursued_route_round_a_corner_rescues_a_rate_limited_run(monkeypatch):
+    """random23 start 61 of the slow test's sampling, in the rate-limited mode: the route's first
+    waypoint is 9 cm from the robot, so within ``route_tolerance`` at once, and the second lies
+    behind the corner of a wall; pursued from there its bearing leads into the wall, and the
+    robot, held by the safety limit, turns back and forth in the escape band until the 120 s
+    limit (as when every waypoint within the tolerance counts as passed, ``PASS_CLOSE`` above
+    it). With the pass rule it first reaches the corner's waypoint, then the goal pose."""
+    world, field, start = _slow_test_case(23, 61)
+    cfg = ControllerConfig.from_robot(world.robot, **RATE_LIMITED)
+    routes = TreeRoutes(world)
+    with monkeypatch.context() as m:
+        m.setattr(navigation.tracker, "PASS_CLOSE", 1.0)
+        reached, _ = run_closed_loop(world, field, start, cfg, max_steps=1200, tracker=Tracker(cfg, route=routes))
+    assert not reached  # the failure the case is for
+    tracker = Tracker(cfg, route=routes)
+    reached, sim = run_closed_loop(world, field, start, cfg, max_steps=1200, tracker=tracker)
+    assert reached, f"ended at {sim.pose} after {sim.time:.1f} s"
+    assert tracker.routes >= 1 and sim.metrics.min_clearance > 0.0
+
+
 def test_a_loop_plans_a_route_and_no_route_leaves_the_callers_field():
     world = shared_world("office")
     cfg = ControllerConfig.from_robot(world.robot)
