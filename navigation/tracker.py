@@ -49,8 +49,8 @@ route's inner waypoints one after the other (``CrawlConfig.route_pursuit``, the 
 on the bearing of the waypoint (:func:`~navigation.control.track_point`, the heading gate, the
 safety limit of the caller's forest, the saturation and the rate limit as for a field), i.e.
 along the tree's straight segments, which are collision-free at the buffer they were planned
-with; it passes a waypoint within ``route_tolerance`` (0.15 m) once the straight segment to
-the next one is certified clear (or within :data:`PASS_CLOSE`, 3 cm) and hands over to the caller's
+with; it passes a waypoint within ``route_tolerance`` (0.15 m) once it is within
+:data:`PASS_CLOSE` (3 cm) of the segment from it to the next one, and hands over to the caller's
 field (and its ``following``) for the last one, the goal pose, once the robot has come within
 ``route_goal`` (0.5 m) of it (a route can be the goal pose alone: the goal is in sight, but the
 caller's field takes the robot round in circles in a narrow passage). The route is asked for because
@@ -90,10 +90,9 @@ from .potential import NavigationFunction
 
 __all__ = ["CrawlConfig", "CrawlGuard", "Mode", "Tracker"]
 
-#: a pursued route waypoint always counts as passed within this distance (m) of it, and ...
+#: a pursued route waypoint within ``route_tolerance`` counts as passed once the robot is this
+#: close (m) to the route's segment from it to the next one (``Tracker._passable``)
 PASS_CLOSE = 0.03
-#: ... otherwise once the segment to the next one is clear, checked at samples this far apart (m)
-PASS_STEP = 0.01
 
 
 @dataclass(frozen=True, slots=True)
@@ -462,7 +461,7 @@ class Tracker:
         tol2 = self.route_tolerance ** 2
         pursue = self.guard.config.route_pursuit
         while i < last and (q[0] - route[i][0]) ** 2 + (q[1] - route[i][1]) ** 2 < tol2:
-            if pursue and not self._passable(q, route[i], route[i + 1], current):
+            if pursue and not self._passable(q, route[i], route[i + 1]):
                 break  # pursue waypoint i until the next one is in sight
             i += 1
         self._route_i = i
@@ -487,22 +486,20 @@ class Tracker:
             return current, following, beyond, None
         return cur, fol, rest, None
 
-    def _passable(self, q: np.ndarray, here, after, field: OrientedField) -> bool:
+    @staticmethod
+    def _passable(q: np.ndarray, here, after) -> bool:
         """Whether a pursued waypoint ``here`` (within ``route_tolerance``) counts as passed:
-        the robot is within :data:`PASS_CLOSE` of it, or the straight segment from the robot to
-        the waypoint ``after`` it is certified clear of ``field``'s grown obstacles (samples
-        ``h`` apart whose clearance lower bounds ``c_k`` satisfy ``c_k + c_(k+1) > h``: the
-        distance to the boundaries is 1-Lipschitz). Passing a waypoint within 0.15 m while the
-        next one is behind a corner sent the robot's bearing into the wall: held by the safety
-        limit, it turned back and forth in the escape band (random23 start 61, rate-limited)."""
-        if (q[0] - here[0]) ** 2 + (q[1] - here[1]) ** 2 <= PASS_CLOSE ** 2:
-            return True
-        b = np.array(after[:2], dtype=float)
-        n = max(2, int(math.ceil(math.hypot(*(b - q)) / PASS_STEP)) + 1)
-        pts = q + np.linspace(0.0, 1.0, n)[:, None] * (b - q)
-        h = math.hypot(*(b - q)) / (n - 1)
-        c = np.asarray(field.clearance(pts, h), dtype=float)
-        return bool(np.all(c[:-1] + c[1:] > h))
+        the robot is within :data:`PASS_CLOSE` of it or of the route's segment from it to the
+        waypoint ``after`` it. The segment is collision-free at the route's buffer, and so,
+        nearly, is the bearing line from a robot beside it. Passing a waypoint within 0.15 m
+        while the robot was off the segment, with the next waypoint behind a corner, sent the
+        bearing into the wall: held by the safety limit, the robot turned back and forth in the
+        escape band (random23 start 61, rate-limited)."""
+        a, b = np.array(here[:2], dtype=float), np.array(after[:2], dtype=float)
+        ab = b - a
+        n2 = float(ab @ ab)
+        u = min(1.0, max(0.0, float((q - a) @ ab) / n2)) if n2 > 0 else 0.0
+        return math.hypot(*(q - a - u * ab)) <= PASS_CLOSE
 
     def _pursue_goal(self, q: np.ndarray) -> bool:
         """Whether the route's goal position is pursued: with ``route_pursuit``, until the robot
