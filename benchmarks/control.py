@@ -3,7 +3,7 @@
 Run from the repository root::
 
     python -m benchmarks.control [--quick] [--out benchmarks/results] [--starts 10] [--goals 2] [--random 5] [--jobs 1]
-                                 [--push-forward] [--standoff D] [--no-crawl-guard] [--no-route] [--rate-limited]
+                                 [--push-forward] [--standoff D] [--no-crawl-guard] [--no-route] [--unlimited]
 
 For each world (``simple``, ``office`` with all obstacles known, and random forest worlds from
 ``tests.worldgen`` with ``gap=0.3`` so that they stay forests in the robot's configuration
@@ -23,10 +23,12 @@ suite's chatter (:func:`benchmarks.methods.chatter`: sign flips of the executed 
 consecutive periods, both above 0.05 rad/s, per metre; a run is *flagged* above 1/m) with the
 count of flagged runs; the longest time to goal of a successful run; *rate-limit jumps*: steps
 whose command changed by more than 0.1 m/s in ``v`` or 0.6 rad/s in ``omega`` (the rate-limited
-mode's bound, ``DV_BOUND`` / ``DOMEGA_BOUND``; 0 expected in that mode). ``--push-forward`` runs the controller with
+mode's bound, ``DV_BOUND`` / ``DOMEGA_BOUND``; 0 expected unless ``--unlimited``). ``--push-forward`` runs the controller with
 ``ControllerConfig(push_forward=True)`` and ``--standoff D`` with ``ControllerConfig(standoff=D)``
-(``--standoff 0``: the controller without the stand-off; docs/control.md), ``--rate-limited``
-with the rate-limited mode (``navigation.control.RATE_LIMITED``); the crawl guard
+(``--standoff 0``: the controller without the stand-off; docs/control.md), ``--unlimited``
+without the rate-limited mode (``navigation.control.UNLIMITED``; the rate limit is the
+controller's default since the twenty-seventh session, ``--rate-limited`` is accepted and
+changes nothing); the crawl guard
 then engages ``standoff=0.03`` only while the robot crawls. Also the median
 time of one controller step (field, Jacobian, command) with its target <= 2 ms, and the longest
 step (a route's planning and the first field of its waypoints fall on one step). The
@@ -48,7 +50,7 @@ from pathlib import Path
 import numpy as np
 
 import navigation
-from navigation.control import RATE_LIMITED, ControllerConfig, track
+from navigation.control import RATE_LIMITED, UNLIMITED, ControllerConfig, track
 from navigation.tracker import CrawlConfig, Tracker
 from navigation.oriented import OrientedField, wrap_angle
 from service.sim import Simulator
@@ -111,17 +113,17 @@ def _worlds(n_random: int):
 
 def _world_row(job) -> dict:
     """Closed-loop runs of one world: ``job = (name, world, starts, goals, push_forward, standoff,
-    guard, rate_limited, relax, route)`` (``standoff``, ``relax`` ``None``: the :class:`ControllerConfig`
+    guard, unlimited, relax, route)`` (``standoff``, ``relax`` ``None``: the :class:`ControllerConfig`
     default; ``guard``: the crawl guard; ``route``: its route rescue)."""
-    name, world, starts, goals, push_forward, standoff, guard, rate, relax, route = job
+    name, world, starts, goals, push_forward, standoff, guard, unlimited, relax, route = job
     routes = TreeRoutes(world) if guard and route else None
     rng = np.random.default_rng(0)
     r = world.robot.radius
     extra = {} if standoff is None else {"standoff": standoff}
     if relax is not None:
         extra["relax"] = relax
-    if rate:
-        extra.update(RATE_LIMITED)
+    if unlimited:
+        extra.update(UNLIMITED)
     cfg = ControllerConfig.from_robot(world.robot, push_forward=push_forward, **extra)
     eps, times = [], []
     for g in range(goals):
@@ -181,10 +183,10 @@ def _total(rows: list[dict]) -> dict:
 
 def run(*, quick: bool = False, starts: int = 10, goals: int = 2, n_random: int = 5, jobs: int = 1,
         push_forward: bool = False, standoff: float | None = None, crawl_guard: bool = True,
-        rate_limited: bool = False, relax: float | None = None, route: bool = True) -> dict:
+        unlimited: bool = False, relax: float | None = None, route: bool = True) -> dict:
     if quick:
         starts, goals, n_random = 2, 1, 0
-    work = [(name, world, starts, goals, push_forward, standoff, crawl_guard, rate_limited, relax, route)
+    work = [(name, world, starts, goals, push_forward, standoff, crawl_guard, unlimited, relax, route)
             for name, world in _worlds(n_random)
             if not quick or name == "simple"]
     prepare()  # kernels compiled before any step is timed (forked workers inherit them)
@@ -198,7 +200,7 @@ def run(*, quick: bool = False, starts: int = 10, goals: int = 2, n_random: int 
     return {"benchmark": "control", "quick": quick,
             "settings": {"starts": starts, "goals": goals, "random": n_random, "push_forward": push_forward,
                          "standoff": standoff,
-                         "crawl_guard": crawl_guard, "route": route, "rate_limited": rate_limited, "relax": relax},
+                         "crawl_guard": crawl_guard, "route": route, "unlimited": unlimited, "relax": relax},
             "tolerances": {"position": POS_TOL, "heading": HEADING_TOL, "max_time": MAX_TIME},
             "step_target": STEP_TARGET, "worlds": rows,
             "machine": machine_info()}
@@ -216,7 +218,7 @@ def render_markdown(result: dict) -> str:
            + (f" --standoff {st['standoff']:g}" if st.get("standoff") is not None else "")
            + ("" if st.get("crawl_guard", True) else " --no-crawl-guard")
            + ("" if st.get("route", True) or not st.get("crawl_guard", True) else " --no-route")
-           + (" --rate-limited" if st.get("rate_limited") else "")
+           + (" --unlimited" if st.get("unlimited") else "")
            + (f" --relax {st['relax']:g}" if st.get("relax") is not None else ""))
     lines = ["# Closed-loop controller benchmark", "",
              f"`{cmd}` "
@@ -258,8 +260,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--jobs", type=int, default=1, help="worker processes (one world per task)")
     parser.add_argument("--push-forward", action="store_true",
                         help="track the push-forward direction (ControllerConfig(push_forward=True))")
+    parser.add_argument("--unlimited", action="store_true",
+                        help="without the controller's rate-limited mode, its default (accel_max 0, alpha_max 0, "
+                             "brake_share 1: navigation.control.UNLIMITED)")
     parser.add_argument("--rate-limited", action="store_true",
-                        help="the controller's rate-limited mode (accel_max 1, alpha_max 6, brake_share 0.5)")
+                        help="the controller's default rate-limited mode (kept for old command lines; no effect)")
     parser.add_argument("--standoff", type=float, default=None,
                         help="ControllerConfig.standoff in m (0 turns the stand-off off; default: the config's)")
     parser.add_argument("--relax", type=float, default=None,
@@ -275,7 +280,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error("--relax must be >= 0")
     result = run(quick=args.quick, starts=args.starts, goals=args.goals, n_random=args.random, jobs=args.jobs,
                  push_forward=args.push_forward, standoff=args.standoff, crawl_guard=not args.no_crawl_guard,
-                 rate_limited=args.rate_limited, relax=args.relax, route=not args.no_route)
+                 unlimited=args.unlimited, relax=args.relax, route=not args.no_route)
     write_results(args.out, "control", result, render_markdown(result))
     return 0
 

@@ -15,6 +15,7 @@ invalid world or task, or a Zenoh configuration that cannot be opened.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import gc
 import json
 import logging
@@ -77,12 +78,15 @@ def _common(p: argparse.ArgumentParser, *, default_world: str | None) -> None:
     p.add_argument("--watchdog", type=_positive, default=1.0,
                    help="seconds without a fresh pose or scan before the robot is stopped (blocked)")
     p.add_argument("--accel-max", type=_positive, default=None, metavar="A",
-                   help="the robot's acceleration limit (m/s^2): the controller's rate-limited mode, each "
+                   help="the robot's acceleration limit (m/s^2) for the controller's rate limit: each "
                         "command within A*dt of the last in v, braking within half the clearance "
-                        "(docs/control.md 'Rate-limited mode'; with --alpha-max unset it is 6 rad/s^2)")
+                        "(docs/control.md 'Rate-limited mode'; default 1 m/s^2)")
     p.add_argument("--alpha-max", type=_positive, default=None, metavar="B",
-                   help="the robot's turn-rate acceleration limit (rad/s^2) in the rate-limited mode "
-                        "(with --accel-max unset it is 1 m/s^2)")
+                   help="the robot's turn-rate acceleration limit (rad/s^2) for the controller's rate "
+                        "limit (default 6 rad/s^2)")
+    p.add_argument("--unlimited", action="store_true",
+                   help="no rate limit: eq. 24's command at every period, whatever the last one was "
+                        "(navigation.control.UNLIMITED; for a base that smooths its own commands)")
     p.add_argument("--no-crawl-guard", action="store_true",
                    help="track with eq. 24 alone: never engage the stand-off that walks a crawling robot "
                         "along the wall, nor switch modes when it loops (docs/control.md 'Crawl guard', "
@@ -122,20 +126,20 @@ def _free_port() -> int:
 
 
 def _executive_config(a):
-    """The executive's configuration from the options: the controller's rate-limited mode when
-    ``--accel-max`` or ``--alpha-max`` is given (with the rotated-gradient direction it was
-    measured with, docs/control.md "Rate-limited mode"), no crawl guard with
-    ``--no-crawl-guard``, else the executive's defaults (``None``: the push-forward direction,
-    docs/executive.md "Tracked direction", with the crawl guard)."""
-    if a.accel_max is None and a.alpha_max is None and not a.no_crawl_guard:
+    """The executive's configuration from the options: its default controller (rate-limited,
+    docs/control.md "Rate-limited mode") with ``--accel-max`` / ``--alpha-max`` as given, or
+    without the rate limit with ``--unlimited``; no crawl guard with ``--no-crawl-guard``;
+    ``None`` (the executive's defaults) when none of them is given."""
+    if a.accel_max is None and a.alpha_max is None and not a.unlimited and not a.no_crawl_guard:
         return None
-    from navigation.control import RATE_LIMITED, ControllerConfig
+    from navigation.control import UNLIMITED
     from tamp.executive import ExecutiveConfig
 
     over = {"crawl_guard": None} if a.no_crawl_guard else {}
-    if a.accel_max is not None or a.alpha_max is not None:
-        given = {k: v for k, v in (("accel_max", a.accel_max), ("alpha_max", a.alpha_max)) if v is not None}
-        over["controller"] = ControllerConfig(**{**RATE_LIMITED, **given})
+    given = dict(UNLIMITED) if a.unlimited else {}
+    given.update({k: v for k, v in (("accel_max", a.accel_max), ("alpha_max", a.alpha_max)) if v is not None})
+    if given:
+        over["controller"] = dataclasses.replace(ExecutiveConfig().controller, **given)
     return ExecutiveConfig(**over)
 
 

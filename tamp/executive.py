@@ -376,12 +376,14 @@ class ExecutiveConfig:
         every waypoint of the tree (docs/executive.md: 16 % less mission time on the 13
         benchmark missions).
     controller : navigation.ControllerConfig or None
-        Gains and modes of the unicycle controller (eq. 24-25), e.g. the rate-limited mode for a
-        robot with acceleration limits (``ControllerConfig(accel_max=1.0, alpha_max=6.0,
-        brake_share=0.5)``, docs/control.md "Rate-limited mode"); its ``v_max`` and
-        ``omega_max`` are replaced by the world's robot's. Default: the push-forward direction
-        (``ControllerConfig(push_forward=True)``, module doc "Tracked direction"); ``None``: the
-        controller's own defaults (the rotated gradient of eq. 20-23).
+        Gains and modes of the unicycle controller (eq. 24-25); its ``v_max`` and ``omega_max``
+        are replaced by the world's robot's. Default: the push-forward direction with the
+        controller's default rate limit (``ControllerConfig(push_forward=True)``: every command
+        within 0.1 m/s and 0.6 rad/s of the last, docs/control.md "Rate-limited mode"; module doc
+        "Tracked direction"); ``ControllerConfig(push_forward=True, **navigation.control.UNLIMITED)``
+        without the rate limit (with the turn cap and the turn onto a leg, which the rate
+        limit excludes); ``None``: the controller's own defaults (the rotated gradient of
+        eq. 20-23).
     max_segment : float
         Longest distance (m) between consecutive waypoints of a leg: longer segments of the
         tree's path get evenly spaced waypoints on them (module doc, "Short edges"); ``0``

@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 
 from navigation.clearance import forest_clearance
+from navigation.control import UNLIMITED
 from navigation.world import World
 from perception import ObstacleMap
 from service.sim import Simulator
@@ -387,7 +388,8 @@ def test_the_executive_never_drives_faster_than_it_can_turn_onto_its_waypoint(ca
     most ``reachable_speed`` of the waypoint tracked (the motion guard and the safety limit
     only lower it further); without it the robot drives faster somewhere. Both arrive."""
     world = _seen_gap_world()
-    ex = Executive(world, config=ExecutiveConfig(turn_cap=cap))
+    unlimited = dataclasses.replace(ExecutiveConfig().controller, **UNLIMITED)  # the cap is off with the rate limit
+    ex = Executive(world, config=ExecutiveConfig(turn_cap=cap, controller=unlimited))
     sim = Simulator(world, seed=0)
     over = 0
     for _ in range(400):
@@ -1030,7 +1032,8 @@ def test_turning_onto_a_leg_on_the_spot(angle, hold):
     90-degree gate, so eq. 24 alone drives off at once, on a curve) first turns on the spot
     until within ``align_angle``, for at most ``align_time`` seconds; then eq. 24 as usual."""
     world = _open_two_regions("F a")  # a is straight ahead to the west (heading pi)
-    cfg = ExecutiveConfig(align_angle=angle, align_time=hold)
+    unlimited = dataclasses.replace(ExecutiveConfig().controller, **UNLIMITED)  # off with the rate limit
+    cfg = ExecutiveConfig(align_angle=angle, align_time=hold, controller=unlimited)
     ex = Executive(world, known=True, config=cfg)
     x, y, _ = world.robot.start
     theta = math.pi - math.radians(80)

@@ -18,7 +18,7 @@ import pytest
 import navigation
 from navigation import CrawlConfig, Tracker
 from navigation.tracker import Mode
-from navigation.control import RATE_LIMITED, ControllerConfig
+from navigation.control import RATE_LIMITED, UNLIMITED, ControllerConfig
 from navigation.errors import NavigationError, TampError
 from navigation.oriented import OrientedField
 from tamp.roadmap import segments_clear
@@ -98,7 +98,7 @@ class _Scripted:
 
 def test_every_third_crawl_engagement_plans_a_route_that_is_tracked_waypoint_by_waypoint():
     world = shared_world("office")
-    cfg = ControllerConfig.from_robot(world.robot)
+    cfg = ControllerConfig.from_robot(world.robot, **UNLIMITED)
     field = _field(world, (6.4, 3.3), 0.0)
     planner = _Scripted([(3.0, 2.2, 0.0), (5.0, 3.0, 0.5), (9.0, 9.0, 9.0)])  # the last pose is replaced
     crawl = CrawlConfig(window=1.0, hold=1.0, route_crawls=3)
@@ -135,7 +135,7 @@ def test_a_robot_that_strays_from_its_route_gets_a_new_one_from_where_it_is(devi
     route, the tracker plans a new route from the robot's pose (``route_strays``); with 0,
     never."""
     world = shared_world("office")
-    cfg = ControllerConfig.from_robot(world.robot)
+    cfg = ControllerConfig.from_robot(world.robot, **UNLIMITED)
     field = _field(world, (6.4, 3.3), 0.0)
     planner = _Scripted([(3.0, 2.2, 0.0), (5.0, 3.0, 0.5), (9.0, 9.0, 9.0)])
     crawl = CrawlConfig(window=1.0, hold=1.0, route_crawls=1)
@@ -170,7 +170,7 @@ def test_odd_numbered_routes_are_followed_with_the_plain_controller(alternate):
     caller's field after a route is tracked in the guard's mode again. Off: every route in the
     guard's mode."""
     world = shared_world("office")
-    cfg = ControllerConfig.from_robot(world.robot)
+    cfg = ControllerConfig.from_robot(world.robot, **UNLIMITED)
     field = _field(world, (6.4, 3.3), 0.0)
     planner = _Scripted([(3.0, 2.2, 0.0), (9.0, 9.0, 9.0)])
     t = Tracker(cfg, CrawlConfig(window=1.0, hold=2.0, route_crawls=1, route_pursuit=False, route_alternate=alternate),
@@ -196,7 +196,7 @@ def test_the_goal_of_a_route_is_pursued_until_the_robot_is_near_it(reach):
     too, until the robot first comes within ``route_goal`` of it; from then on (and with 0,
     all along) the caller's field leads to the goal pose, even if the robot leaves that disc."""
     world = shared_world("office")
-    cfg = ControllerConfig.from_robot(world.robot)
+    cfg = ControllerConfig.from_robot(world.robot, **UNLIMITED)
     field = _field(world, (6.4, 3.3), 0.0)
     planner = _Scripted([(9.0, 9.0, 9.0)])  # the goal pose alone (replaced by the caller's)
     t = Tracker(cfg, CrawlConfig(window=1.0, hold=1.0, route_crawls=1), route=planner, route_goal=reach)
@@ -246,7 +246,7 @@ def test_a_pursued_route_round_a_corner_rescues_a_rate_limited_run(monkeypatch):
 
 def test_a_loop_plans_a_route_and_no_route_leaves_the_callers_field():
     world = shared_world("office")
-    cfg = ControllerConfig.from_robot(world.robot)
+    cfg = ControllerConfig.from_robot(world.robot, **UNLIMITED)
     field = _field(world, (6.4, 3.3), 0.0)
     planner = _Scripted(None)
     t = Tracker(cfg, CrawlConfig(), route=planner)
@@ -259,7 +259,7 @@ def test_a_loop_plans_a_route_and_no_route_leaves_the_callers_field():
 
 def test_a_route_through_an_obstacle_is_dropped():
     world = shared_world("office")
-    cfg = ControllerConfig.from_robot(world.robot)
+    cfg = ControllerConfig.from_robot(world.robot, **UNLIMITED)
     field = _field(world, (6.4, 3.3), 0.0)
     t = Tracker(cfg, CrawlConfig(window=1.0, hold=1.0, route_crawls=1), route=_Scripted([(4.5, 2.6, 0.5), (0, 0, 0)]))
     for k in range(40):  # (4.5, 2.6) lies in a grown obstacle: no field leads there
@@ -273,7 +273,7 @@ def test_a_route_through_an_obstacle_is_dropped():
 def test_a_malformed_route_is_refused(route):
     world = shared_world("office")
     field = _field(world, (6.4, 3.3), 0.0)
-    t = Tracker(ControllerConfig.from_robot(world.robot), CrawlConfig(window=1.0, hold=1.0, route_crawls=1),
+    t = Tracker(ControllerConfig.from_robot(world.robot, **UNLIMITED), CrawlConfig(window=1.0, hold=1.0, route_crawls=1),
                 route=_Scripted(route))
     with pytest.raises(NavigationError):
         for k in range(40):
@@ -311,7 +311,7 @@ def test_a_route_rescues_a_run_the_guard_alone_loses(seed, index):
     harmonic tree to the goal as a route (:class:`TreeRoutes`) both reach the goal pose,
     touching nothing."""
     world, field, start = _slow_test_case(seed, index)
-    cfg = ControllerConfig.from_robot(world.robot)
+    cfg = ControllerConfig.from_robot(world.robot, **UNLIMITED)
     reached, _ = run_closed_loop(world, field, start, cfg, max_steps=1200, tracker=Tracker(cfg))
     assert not reached  # the failure the case is for (if the field improves, pick another case)
     tracker = Tracker(cfg, route=TreeRoutes(world))
@@ -347,7 +347,7 @@ def test_a_route_pursued_along_its_segments_rescues_a_run_its_fields_lose():
     (``route_pursuit=False``) the robot turns back and forth there until the 120 s limit. Pursued
     along the route's straight segments it reaches the goal pose, touching nothing."""
     world, field, start = _slow_test_case(1, 35)
-    cfg = ControllerConfig.from_robot(world.robot)
+    cfg = ControllerConfig.from_robot(world.robot, **UNLIMITED)
     routes = TreeRoutes(world)
     fields = Tracker(cfg, CrawlConfig(route_pursuit=False), route=routes)
     reached, _ = run_closed_loop(world, field, start, cfg, max_steps=1200, tracker=fields)

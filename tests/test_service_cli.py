@@ -33,20 +33,31 @@ def test_help_documents_every_option(capsys):
         assert info.value.code == 0
         out = capsys.readouterr().out
         for opt in ["--world", "--task", "--robot", "--listen", "--connect", "--zenoh-config", "--record",
-                    "--viewer", "--rate", "--duration", "--watchdog", "--accel-max", "--alpha-max", "--no-crawl-guard",
+                    "--viewer", "--rate", "--duration", "--watchdog", "--accel-max", "--alpha-max", "--unlimited",
+                    "--no-crawl-guard",
                     *extra]:
             assert opt in out, (sub, opt)
 
 
-def test_acceleration_limits_select_the_rate_limited_controller():
+def test_acceleration_limits_set_the_executives_rate_limited_controller():
+    """The executive's default controller is rate-limited; ``--accel-max`` / ``--alpha-max``
+    change its limits and nothing else, ``--unlimited`` turns the rate limit off."""
+    from dataclasses import replace
+
+    from navigation.control import UNLIMITED
     from service.cli import _executive_config, build_parser
+    from tamp.executive import ExecutiveConfig
 
     parse = build_parser().parse_args
+    default = ExecutiveConfig().controller
+    assert (default.accel_max, default.alpha_max, default.brake_share) == (1.0, 6.0, 0.5)
     assert _executive_config(parse(["run", "--world", "simple"])) is None
     cfg = _executive_config(parse(["demo", "--accel-max", "2"])).controller
-    assert (cfg.accel_max, cfg.alpha_max, cfg.brake_share) == (2.0, 6.0, 0.5)
+    assert cfg == replace(default, accel_max=2.0)
     cfg = _executive_config(parse(["run", "--world", "simple", "--alpha-max", "3"])).controller
-    assert (cfg.accel_max, cfg.alpha_max) == (1.0, 3.0)
+    assert cfg == replace(default, alpha_max=3.0)
+    cfg = _executive_config(parse(["run", "--world", "simple", "--unlimited"])).controller
+    assert cfg == replace(default, **UNLIMITED)
 
 
 def test_no_crawl_guard_turns_the_executives_guard_off():

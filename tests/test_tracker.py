@@ -12,7 +12,7 @@ import pytest
 import navigation
 from navigation import CrawlConfig, CrawlGuard, Tracker
 from navigation.tracker import Mode
-from navigation.control import (ESCAPE_BELOW, ESCAPE_SPEED, RATE_LIMITED, ControllerConfig, _band, _direction,
+from navigation.control import (ESCAPE_BELOW, ESCAPE_SPEED, RATE_LIMITED, UNLIMITED, ControllerConfig, _band, _direction,
                                 track_waypoints)
 from navigation.errors import NavigationError
 from navigation.oriented import OrientedField, wrap_angle
@@ -122,7 +122,7 @@ def test_a_loop_ends_a_crawl_engagement():
 
 def test_tracker_commands_in_each_mode_are_the_controllers():
     """Wall following is the stand-off of the crawl configuration plus the turn limit."""
-    cfg = ControllerConfig()
+    cfg = ControllerConfig(**UNLIMITED)  # commands compared with the pure function of the pose
     crawl = CrawlConfig(turn=0.4)
     t = Tracker(cfg, crawl)
     assert t.config_for(Mode.PLAIN) == cfg
@@ -176,7 +176,7 @@ def test_non_finite_input_is_refused():
 def test_tracker_commands_are_the_controllers_with_and_without_the_stand_off():
     world = shared_world("office")
     r = world.robot.radius
-    cfg = ControllerConfig.from_robot(world.robot)
+    cfg = ControllerConfig.from_robot(world.robot, **UNLIMITED)
     rng = np.random.default_rng(3)
     goal = random_free_points(world, 1, rng, margin=r + 0.2)[0]
     field = OrientedField(navigation.NavigationFunction(world, goal=goal, inflation=r), heading=0.3)
@@ -212,7 +212,7 @@ def _assert_rescued(world, field, start, before: CrawlConfig | None):
     plain controller), the failure the case is for (if the field improves, pick another case),
     and reaches the goal pose with the default ``Tracker``, whose guard engages (a crawl or a
     loop), touching nothing."""
-    cfg = ControllerConfig.from_robot(world.robot)
+    cfg = ControllerConfig.from_robot(world.robot, **UNLIMITED)
     reached, _ = run_closed_loop(world, field, start, cfg, max_steps=1200,
                                  tracker=None if before is None else Tracker(cfg, before))
     assert not reached
@@ -270,7 +270,7 @@ def test_rate_limited_tracker_starts_from_rest_follows_what_was_sent_and_restart
     tr.applied(0.15, 0.4, -1.0)
     late = tr.command(5.0, pose, field)  # long gap: from rest
     assert late.v <= 0.1 + 1e-12 and abs(late.omega) <= 0.6 + 1e-12
-    plain = ControllerConfig.from_robot(world.robot)
+    plain = ControllerConfig.from_robot(world.robot, **UNLIMITED)
     tr = Tracker(plain, crawl=None)
     tr.applied(0.0, 0.5, 1.5)
     assert tr.command(0.1, pose, field) == track_waypoints(pose, field, None, plain)
@@ -283,7 +283,7 @@ def test_the_engaged_stand_off_does_not_hold_a_robot_in_the_escape_band():
     escape band the controller tracks ``Upsilon`` (away from the wall) instead, creeps out at
     ``ESCAPE_SPEED`` once it faces it, and the run reaches the goal pose, touching nothing."""
     world, field, start = _slow_test_case(13, 8)
-    cfg = ControllerConfig.from_robot(world.robot)
+    cfg = ControllerConfig.from_robot(world.robot, **UNLIMITED)
     engaged = Tracker(cfg).config_for(Mode.STANDOFF)
     q = np.array([3.7472, 3.8469])
     assert 0.0 < field.clearance.exact(q) < ESCAPE_BELOW
