@@ -224,6 +224,31 @@ def test_a_pursued_waypoint_is_passed_near_the_segment_to_the_next_one():
     assert Tracker._passable(np.array([1.01, 1.0]), here, here)  # a zero-length segment: the waypoint
 
 
+def _fails_then_arrives(seed: int, index: int, mode, failing, monkeypatch=None, patched=()):
+    """Start ``index`` of random world ``seed`` in the slow test's sampling, with the controller
+    ``ControllerConfig.from_robot(robot, **mode)``: times out (120 s) with the tracker
+    ``failing(cfg, routes)`` builds (with ``monkeypatch.setattr(*p)`` for each ``p`` in
+    ``patched`` during that run) and reaches the goal pose with ``Tracker(cfg, route=routes)``,
+    touching nothing. Returns the failing tracker."""
+    world, field, start = _slow_test_case(seed, index)
+    cfg = ControllerConfig.from_robot(world.robot, **mode)
+    routes = TreeRoutes(world)
+    bad = failing(cfg, routes)
+    if patched:
+        with monkeypatch.context() as m:
+            for p in patched:
+                m.setattr(*p)
+            reached, _ = run_closed_loop(world, field, start, cfg, max_steps=1200, tracker=bad)
+    else:
+        reached, _ = run_closed_loop(world, field, start, cfg, max_steps=1200, tracker=bad)
+    assert not reached  # the failure the case is for (if the field improves, pick another case)
+    tracker = Tracker(cfg, route=routes)
+    reached, sim = run_closed_loop(world, field, start, cfg, max_steps=1200, tracker=tracker)
+    assert reached, f"ended at {sim.pose} after {sim.time:.1f} s"
+    assert tracker.routes >= 1 and sim.metrics.min_clearance > 0.0 and not sim.metrics.collisions
+    return bad
+
+
 def test_a_pursued_route_round_a_corner_rescues_a_rate_limited_run(monkeypatch):
     """random23 start 61 of the slow test's sampling, in the rate-limited mode: the route's first
     waypoint is 9 cm from the robot, so within ``route_tolerance`` at once, and the second lies
@@ -231,17 +256,8 @@ def test_a_pursued_route_round_a_corner_rescues_a_rate_limited_run(monkeypatch):
     robot, held by the safety limit, turns back and forth in the escape band until the 120 s
     limit (as when every waypoint within the tolerance counts as passed, ``PASS_CLOSE`` above
     it). With the pass rule it first reaches the route's segment, then the goal pose."""
-    world, field, start = _slow_test_case(23, 61)
-    cfg = ControllerConfig.from_robot(world.robot, **RATE_LIMITED)
-    routes = TreeRoutes(world)
-    with monkeypatch.context() as m:
-        m.setattr(navigation.tracker, "PASS_CLOSE", 1.0)
-        reached, _ = run_closed_loop(world, field, start, cfg, max_steps=1200, tracker=Tracker(cfg, route=routes))
-    assert not reached  # the failure the case is for
-    tracker = Tracker(cfg, route=routes)
-    reached, sim = run_closed_loop(world, field, start, cfg, max_steps=1200, tracker=tracker)
-    assert reached, f"ended at {sim.pose} after {sim.time:.1f} s"
-    assert tracker.routes >= 1 and sim.metrics.min_clearance > 0.0
+    _fails_then_arrives(23, 61, RATE_LIMITED, lambda cfg, routes: Tracker(cfg, route=routes), monkeypatch,
+                        [(navigation.tracker, "PASS_CLOSE", 1.0)])
 
 
 def test_a_loop_plans_a_route_and_no_route_leaves_the_callers_field():
@@ -310,14 +326,7 @@ def test_a_route_rescues_a_run_the_guard_alone_loses(seed, index):
     concave notch 10 micrometres from the grown boundary (crawl engagements, no loop). With the
     harmonic tree to the goal as a route (:class:`TreeRoutes`) both reach the goal pose,
     touching nothing."""
-    world, field, start = _slow_test_case(seed, index)
-    cfg = ControllerConfig.from_robot(world.robot, **UNLIMITED)
-    reached, _ = run_closed_loop(world, field, start, cfg, max_steps=1200, tracker=Tracker(cfg))
-    assert not reached  # the failure the case is for (if the field improves, pick another case)
-    tracker = Tracker(cfg, route=TreeRoutes(world))
-    reached, sim = run_closed_loop(world, field, start, cfg, max_steps=1200, tracker=tracker)
-    assert reached, f"ended at {sim.pose} after {sim.time:.1f} s"
-    assert tracker.routes >= 1
+    _fails_then_arrives(seed, index, UNLIMITED, lambda cfg, routes: Tracker(cfg))
 
 
 def test_a_pursued_route_goal_rescues_a_rate_limited_run_that_circles_in_a_passage():
@@ -327,16 +336,7 @@ def test_a_pursued_route_goal_rescues_a_rate_limited_run_that_circles_in_a_passa
     and the caller's field takes the robot round in circles: with ``route_goal=0`` it times out.
     Pursuing the goal position until 0.5 m from it, it reaches the goal pose, every command
     within the rate limit (``run_closed_loop``)."""
-    world, field, start = _slow_test_case(13, 98)
-    cfg = ControllerConfig.from_robot(world.robot, **RATE_LIMITED)
-    routes = TreeRoutes(world)
-    reached, _ = run_closed_loop(world, field, start, cfg, max_steps=1200,
-                                 tracker=Tracker(cfg, route=routes, route_goal=0.0))
-    assert not reached  # the failure the case is for
-    tracker = Tracker(cfg, route=routes)
-    reached, sim = run_closed_loop(world, field, start, cfg, max_steps=1200, tracker=tracker)
-    assert reached, f"ended at {sim.pose} after {sim.time:.1f} s"
-    assert tracker.routes >= 1 and sim.metrics.min_clearance > 0.0
+    _fails_then_arrives(13, 98, RATE_LIMITED, lambda cfg, routes: Tracker(cfg, route=routes, route_goal=0.0))
 
 
 def test_a_route_pursued_along_its_segments_rescues_a_run_its_fields_lose():
@@ -346,14 +346,6 @@ def test_a_route_pursued_along_its_segments_rescues_a_run_its_fields_lose():
     direction reversing across the channel): with the routes tracked by their fields
     (``route_pursuit=False``) the robot turns back and forth there until the 120 s limit. Pursued
     along the route's straight segments it reaches the goal pose, touching nothing."""
-    world, field, start = _slow_test_case(1, 35)
-    cfg = ControllerConfig.from_robot(world.robot, **UNLIMITED)
-    routes = TreeRoutes(world)
-    fields = Tracker(cfg, CrawlConfig(route_pursuit=False), route=routes)
-    reached, _ = run_closed_loop(world, field, start, cfg, max_steps=1200, tracker=fields)
-    assert not reached and fields.routes >= 2  # the failure the case is for
-    tracker = Tracker(cfg, route=routes)
-    reached, sim = run_closed_loop(world, field, start, cfg, max_steps=1200, tracker=tracker)
-    assert reached, f"ended at {sim.pose} after {sim.time:.1f} s"
-    assert tracker.routes >= 1 and sim.metrics.min_clearance > 0.0
-    assert sim.metrics.min_clearance > 0.0 and not sim.metrics.collisions
+    fields = _fails_then_arrives(1, 35, UNLIMITED,
+                                 lambda cfg, routes: Tracker(cfg, CrawlConfig(route_pursuit=False), route=routes))
+    assert fields.routes >= 2  # the fields failed route after route
