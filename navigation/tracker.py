@@ -95,6 +95,15 @@ __all__ = ["CrawlConfig", "CrawlGuard", "Mode", "Tracker"]
 PASS_CLOSE = 0.03
 
 
+def _to_segment(q: np.ndarray, a, b) -> float:
+    """Distance (m) from the position ``q`` to the segment from ``a`` to ``b``."""
+    a = np.asarray(a, dtype=float)
+    ab = np.asarray(b, dtype=float) - a
+    n2 = float(ab @ ab)
+    u = min(1.0, max(0.0, float((q - a) @ ab) / n2)) if n2 > 0 else 0.0
+    return math.hypot(*(q - a - u * ab))
+
+
 @dataclass(frozen=True, slots=True)
 class CrawlConfig:
     """When the crawl guard engages the stand-off.
@@ -495,11 +504,7 @@ class Tracker:
         while the robot was off the segment, with the next waypoint behind a corner, sent the
         bearing into the wall: held by the safety limit, the robot turned back and forth in the
         escape band (random23 start 61, rate-limited)."""
-        a, b = np.array(here[:2], dtype=float), np.array(after[:2], dtype=float)
-        ab = b - a
-        n2 = float(ab @ ab)
-        u = min(1.0, max(0.0, float((q - a) @ ab) / n2)) if n2 > 0 else 0.0
-        return math.hypot(*(q - a - u * ab)) <= PASS_CLOSE
+        return _to_segment(q, here[:2], after[:2]) <= PASS_CLOSE
 
     def _pursue_goal(self, q: np.ndarray) -> bool:
         """Whether the route's goal position is pursued: with ``route_pursuit``, until the robot
@@ -517,11 +522,7 @@ class Tracker:
         i, route = self._route_i, self._route
         if not (self.route_deviation > 0 and self._on_route() and t - self._planned_at >= self.guard.config.window):
             return False
-        a = np.array(self._route_from if i == 0 else route[i - 1][:2])
-        ab = np.array(route[i][:2]) - a
-        n2 = float(ab @ ab)
-        u = min(1.0, max(0.0, float((q - a) @ ab) / n2)) if n2 > 0 else 0.0
-        return math.hypot(*(q - a - u * ab)) > self.route_deviation
+        return _to_segment(q, self._route_from if i == 0 else route[i - 1][:2], route[i][:2]) > self.route_deviation
 
     def _plan(self, t: float, q: np.ndarray, th: float, current: OrientedField) -> None:
         goal = (float(current.goal[0]), float(current.goal[1]), float(current.heading))
