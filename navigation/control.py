@@ -219,7 +219,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .errors import NavigationError, check_numbers
+from ._arrays import as_points
+from .errors import NavigationError, PointsError, check_numbers
 from .oriented import BoundaryFrame, OrientedField, wrap_angle
 
 __all__ = ["ControllerConfig", "Command", "track", "track_waypoints", "track_point", "switch_weight", "safe_speed",
@@ -820,15 +821,13 @@ def track_point(pose, point, field: OrientedField, config: ControllerConfig = Co
     """
     q, theta = _pose(pose)
     beyond = _beyond(beyond)
-    try:
-        p = np.asarray(point, dtype=float).reshape(2)
-    except (TypeError, ValueError):
-        p = np.full(2, math.nan)
-    if not np.all(np.isfinite(p)):
-        raise NavigationError(f"point must be a finite position (x, y), got {point!r}")
+    p, single = as_points(point, "point")
+    if not single:
+        raise PointsError(f"Expected `point` to have shape (2,), got {np.shape(point)}.")
     room = _clearance(q, (field,), config)
-    away = float(field.evaluate(q).angle)
-    tg, grad, dist = _bearing(q, p)
+    # Upsilon's direction is read only where the escape band needs it (one field evaluation)
+    away = float(field.evaluate(q).angle) if room < ESCAPE_BELOW else None
+    tg, grad, dist = _bearing(q, p[0])
     if tg is None:  # on the point: hold the heading
         tg = theta
     return _command(theta, tg, grad, math.tanh(dist + beyond), room, config, math.inf, previous, away)
