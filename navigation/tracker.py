@@ -358,8 +358,8 @@ class Tracker:
         self.route_tolerance, self.route_deviation, self.route_goal = route_tolerance, route_deviation, route_goal
         check_numbers(self, ("route_tolerance",), positive=True)
         check_numbers(self, ("route_deviation", "route_goal"), positive=False)
-        self.route_tolerance, self.route_deviation = float(route_tolerance), float(route_deviation)
-        self.route_goal = float(route_goal)
+        self.route_tolerance, self.route_deviation, self.route_goal = map(float, (route_tolerance, route_deviation,
+                                                                                  route_goal))
         self._target = None  # the caller's current field the route leads to
         self._route: tuple = ()  # its waypoints (x, y, theta), the last one the target's goal pose
         self._route_fields: list = []  # one field per waypoint but the last (built when first tracked)
@@ -483,7 +483,7 @@ class Tracker:
             if self.guard.config.route_pursuit:
                 point = np.array(route[i][:2])
                 if i > self._route_free:  # each waypoint checked once, when first pursued
-                    if not bool(current.evaluate(point).free):
+                    if not bool(current.nf.is_free(point)):
                         raise NavigationError(f"route waypoint {route[i]} is outside the free space")
                     self._route_free = i
                 return current, None, rest, point
