@@ -10,6 +10,7 @@ out without a route and reach the goal pose with one.
 
 from __future__ import annotations
 
+import contextlib
 import math
 
 import numpy as np
@@ -234,12 +235,9 @@ def _fails_then_arrives(seed: int, index: int, mode, failing, monkeypatch=None, 
     cfg = ControllerConfig.from_robot(world.robot, **mode)
     routes = TreeRoutes(world)
     bad = failing(cfg, routes)
-    if patched:
-        with monkeypatch.context() as m:
-            for p in patched:
-                m.setattr(*p)
-            reached, _ = run_closed_loop(world, field, start, cfg, max_steps=1200, tracker=bad)
-    else:
+    with monkeypatch.context() if patched else contextlib.nullcontext() as m:
+        for p in patched:
+            m.setattr(*p)
         reached, _ = run_closed_loop(world, field, start, cfg, max_steps=1200, tracker=bad)
     assert not reached  # the failure the case is for (if the field improves, pick another case)
     tracker = Tracker(cfg, route=routes)
