@@ -246,6 +246,34 @@ def test_robot_near_an_inflated_corner_is_cleared():
     assert 0 in changed and proposed[0].inflated.beta(p) > 0, notes
 
 
+@pytest.mark.parametrize("both", [True, False])
+def test_a_region_off_a_walls_corner_moves_its_end_back(monkeypatch, both):
+    """A region disc beside a wall's end (random41's r1 off the arm at (4.04, 1.97)) is
+    cleared by moving the wall's end back a few centimetres (``_TRIM_BOTH``), not by cutting
+    the wall along its whole length from the side (the face the disc lies in front of by
+    ``|u| / h``): the trimmed estimate keeps more of the wall, and the disc is clear."""
+    from navigation.geometry import Squircle
+
+    import perception.map as pm
+    from perception.fit import inflate
+    from perception.map import Estimate
+
+    monkeypatch.setattr(pm, "_TRIM_BOTH", both)
+    world = _world("random41")
+    omap = ObstacleMap.from_world(world, noise_std=0.01)
+    sq = Squircle((4.038, 1.967), 0.31, 0.981, -0.6, 0.953)  # the arm's piece, noisy drive
+    c, rr = omap.regions[0]  # r1
+    assert math.dist(c, (4.6458, 2.2932)) < 1e-3
+    proposed, changed, removed = {0: Estimate(0, sq, inflate(sq, omap.radius), 0)}, set(), set()
+    msg = omap._trim(0, c, rr + omap.radius, proposed, changed, removed, "region")
+    cut = proposed[0].squircle
+    assert msg and 0 in changed and cut.distance(c) >= rr + omap.radius and proposed[0].inflated.beta(c) > 0
+    if both:  # the end moved back: the length shrank, the width stayed
+        assert cut.width == sq.width and cut.height < sq.height and cut.area > 0.85 * sq.area
+    else:  # the side cut: the width shrank along the whole length
+        assert cut.height == sq.height and cut.width < 0.7 * sq.width
+
+
 def test_an_estimate_growing_by_repeated_cycle_merges_is_reverted(monkeypatch):
     """A repair that merges one estimate again and again within one update (office, jittered
     start: trimmed clear of the robot disc, the returns left out fitted again, the new piece
