@@ -501,8 +501,9 @@ def test_a_warm_decomposition_over_free_space_gets_a_better_cold_one(monkeypatch
 
 def test_the_cold_second_opinion_waits_for_the_cluster_to_grow(monkeypatch):
     """A cluster tried cold is tried again only once it has ``_COLD_GROWTH`` times the returns,
-    and a cold decomposition taken replaces the cluster's memo (the next warm refit starts from
-    it and needs no second opinion)."""
+    or when its warm pieces hold more free cells deeper than ``free_tol`` than the last try
+    left (``_COLD_WORSE``), and a cold decomposition taken replaces the cluster's memo (the
+    next warm refit starts from it and needs no second opinion)."""
     from pathlib import Path
 
     import perception.fit as pf
@@ -520,16 +521,26 @@ def test_the_cold_second_opinion_waits_for_the_cluster_to_grow(monkeypatch):
     monkeypatch.setattr(pf, "_fit_cluster", spy)
     cache: dict = {}
     fits = fit_cluster(d["q"], views=d["v"], free=d["free"], config=cfg, grow=0.105, init=init, cache=cache)
-    assert calls == [False, True] and cache["cold"] == len(d["q"])
+    assert calls == [False, True] and cache["cold"] == (len(d["q"]), 0)
     calls.clear()
     again = fit_cluster(d["q"], views=d["v"], free=d["free"], config=cfg, grow=0.105,
                         init=[f.squircle for f in fits], cache=cache)
     assert calls == [False], calls  # the cold pieces explain their returns: no second try
     assert [f.squircle for f in again] == [f.squircle for f in fits]
-    # the warm decomposition again (a cache without the cold result): not tried cold before
-    # the cluster has grown
+    # the warm decomposition again (a cache without the cold result; its pieces hold 3 free
+    # cells deeper than free_tol): not tried cold before the cluster has grown when the last
+    # try left as many deep cells, tried again when it left fewer
     calls.clear()
-    cache = {"cold": len(d["q"])}
+    cache = {"cold": (len(d["q"]), 3)}
+    fit_cluster(d["q"], views=d["v"], free=d["free"], config=cfg, grow=0.105, init=init, cache=cache)
+    assert calls == [False]
+    calls.clear()
+    cache = {"cold": (len(d["q"]), 0)}
+    fit_cluster(d["q"], views=d["v"], free=d["free"], config=cfg, grow=0.105, init=init, cache=cache)
+    assert calls == [False, True] and cache["cold"] == (len(d["q"]), 0)
+    monkeypatch.setattr(pf, "_COLD_WORSE", False)
+    calls.clear()
+    cache = {"cold": (len(d["q"]), 0)}
     fit_cluster(d["q"], views=d["v"], free=d["free"], config=cfg, grow=0.105, init=init, cache=cache)
     assert calls == [False]
 
