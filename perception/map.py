@@ -18,7 +18,8 @@ The map starts knowing only the workspace and grows from scans:
    would soon leave the inflated estimate) refits at once; other contradictions make the
    cluster pending: refitted at most once every 5 scans, together with a scan that refits
    anyway (one forest check), or alone after 20 scans (up to 4 times longer for free space
-   that the last refits could not clear; such a futile refit, and a repair merging two
+   that the last refits could not clear, unless the cluster's returns have grown 1.1 times
+   since its last refit, ``_FUTILE_GROWTH``; such a futile refit, and a repair merging two
    estimates, leave the cluster pending; a pending refit after a futile one is skipped while
    the cluster's returns, nearby free cells and estimates are those of that refit). The
    cluster is fitted by
@@ -84,6 +85,7 @@ _REFIT_LATEST = 20  # scans after which a pending (non-urgent) refit runs even o
 _MERGES_PER_UPDATE = 2  # cycle merges one estimate may take part in within one update
 _SKIP_SAME = True  # a pending refit after a futile one waits while the cluster's data is unchanged
 _MAX_BACKOFF = 2  # futile free-space refits double the wait, at most 2 ** _MAX_BACKOFF times
+_FUTILE_GROWTH = 1.1  # ... unless the cluster's returns have grown this many times since (0: off)
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -271,6 +273,7 @@ class _Cluster:
     by_points: bool = False  # the pending contradiction includes returns outside its estimates
     futile: int = 0  # refits in a row that left free space deeper than free_tol inside (backoff)
     data: tuple = ()  # fingerprint of its returns and nearby free cells at its last refit
+    cells: int = 0  # return cells at its last refit
     result: tuple = ()  # the squircles its last refit left (before trims)
     cache: dict = field(default_factory=dict)  # fit_cluster's memo of its pieces (refit cost)
 
@@ -609,6 +612,12 @@ class ObstacleMap:
                 # free space that the last refits could not clear (the same fit would come
                 # back) waits twice as long per futile refit, up to 4 times (returns do not)
                 wait = 1 if cl.by_points else 2 ** min(cl.futile, _MAX_BACKOFF)
+                if (_FUTILE_GROWTH and wait > 1 and cl.pending
+                        and len(self._label_cells(lab)[0]) >= _FUTILE_GROWTH * cl.cells):
+                    # returns inside its estimates that the futile refit did not have: new data
+                    # for the decomposition, no backoff (random73 noise-free: refitted futile
+                    # at 234 returns, 273 at the drive's end, whose decomposition is clean)
+                    wait = 1
                 if cl.pending and age >= _REFIT_EVERY * wait and (busy or age >= _REFIT_LATEST * wait):
                     if cl.futile and lab not in refit:
                         waiting.add(lab)  # refitted only if its data changed since (_refit)
@@ -883,6 +892,7 @@ class ObstacleMap:
             self.stats["refit_skipped"] += 1
             return
         cl.data = data
+        cl.cells = len(self._label_cells(lab)[0])
         old = [i for i in cl.ids if i in proposed]
         # an estimate the free space contradicts deeply (a free cell more than ``2 free_tol``
         # inside) is no warm start: warm-started from such a box over the free space between
