@@ -318,7 +318,7 @@ def _need_into(need, ux, p, q, tol):
         dx, dy, u, v, x, y = local_xy(q[i, 0], q[i, 1], p[0], p[1], c, sn, a, b)
         x2, y2 = x * x, y * y
         g = gauge_xy(x2, y2, k)
-        need[i] = g / (1.0 + tol / max(math.hypot(u, v), 1e-9))
+        need[i] = g / (1.0 + tol[i] / max(math.hypot(u, v), 1e-9))
         ux[i] = abs(x) >= abs(y)
 
 
@@ -363,9 +363,12 @@ def _contain_kernel(p, q, tol):
     return p
 
 
-def contain(p: np.ndarray, q: np.ndarray, tol: float) -> np.ndarray:
-    """:func:`perception.fit._contain` (the same steps, bit-identical)."""
-    return _contain_kernel(_arr(p), _arr(q), float(tol))
+def contain(p: np.ndarray, q: np.ndarray, tol) -> np.ndarray:
+    """:func:`perception.fit._contain` (the same steps, bit-identical); ``tol`` a float or one
+    radial tolerance per point."""
+    q = _arr(q)
+    t = np.full(len(q), float(tol)) if np.ndim(tol) == 0 else _arr(np.asarray(tol, dtype=float).reshape(len(q)))
+    return _contain_kernel(_arr(p), q, t)
 
 
 @numba.njit(**_JIT)

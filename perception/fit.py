@@ -76,6 +76,7 @@ _LM_NFEV = 30
 _INFLATE_LINEAR = 5  # inflation steps tried in order before bisection (:func:`inflate`)
 _DISTANCE_WEIGHTS = True  # fit distances to first order (:func:`_distance_weights`), not radial errors
 _REWEIGHT_TOL = 0.1  # distance weights moving more than this during a solve: solved again with the new ones
+_CONTAIN_DISTANCE = False  # containment and "within inside_tol" by distance (:func:`_outside`), not radial error (measured, not yet the default)
 _SOLVER = "lm"  # "lm" (:func:`_lm`) or "scipy" (``least_squares``, trust region reflective)
 
 
@@ -161,6 +162,16 @@ def radial_error(sq: Squircle, q) -> np.ndarray:
     q = _arr(np.asarray(q, dtype=float).reshape(-1, 2))
     # compiled: ``np.linalg.norm(q - c, axis=1) * (1 - 1 / max(gauge, 1e-9))`` row by row, bit-identical
     return _shape_kernel.radial_error(sq.center, sq.width, sq.height, sq.theta, sq.s, q)
+
+
+def _outside(sq: Squircle, q) -> np.ndarray:
+    """How far points are outside ``sq``: the radial error times the distance weight (the
+    distance to first order) with ``_CONTAIN_DISTANCE``, else the radial error."""
+    q = np.asarray(q, dtype=float).reshape(-1, 2)
+    r = radial_error(sq, q)
+    if _CONTAIN_DISTANCE and len(q):
+        r = r * _distance_weights(_params(sq), q)
+    return r
 
 
 def _residuals(p: np.ndarray, q: np.ndarray, free: np.ndarray, w_free: float, ref=None, wq=None) -> np.ndarray:
@@ -544,7 +555,16 @@ def _complete(p: np.ndarray, q: np.ndarray, views, cfg: PerceptionConfig) -> tup
 def _contain(p: np.ndarray, q: np.ndarray, tol: float) -> np.ndarray:
     """Grow the extents until every point is within ``tol`` of the inside: each axis by what the
     points beyond its faces need (an elongated shape is not inflated along its length for a
-    point beyond its side), then, to be sure, uniformly."""
+    point beyond its side), then, to be sure, uniformly. With ``_CONTAIN_DISTANCE`` ``tol`` is a
+    distance (to first order: the radial tolerance of each point is ``tol`` over its
+    :func:`_distance_weights` at ``p``)."""
+    if _CONTAIN_DISTANCE and len(q):
+        for _ in range(3):  # the weights at the grown shape
+            p1 = _shape_kernel.contain(p, q, tol / _distance_weights(p, q))
+            if np.array_equal(p1, p):
+                break
+            p = p1
+        return p
     return _shape_kernel.contain(p, q, tol)  # compiled, the same steps (bit-identical)
 
 
@@ -1086,7 +1106,7 @@ def _break_cycles(q, vw, free, fits: list[Fit], cfg: PerceptionConfig, grow: flo
             break
         cyc = min(cycles, key=len)
         # a piece whose points the others already cover is redundant: drop it
-        # (``errs[a]``: the radial errors of piece ``a``'s points in every other piece, in
+        # (``errs[a]``: the :func:`_outside` errors of piece ``a``'s points in every other piece, in
         # order, shape (others, points); :func:`_shrink` reads them too)
         drop = None
         errs: dict[int, np.ndarray] = {}
@@ -1094,7 +1114,7 @@ def _break_cycles(q, vw, free, fits: list[Fit], cfg: PerceptionConfig, grow: flo
         # drop another piece into
         clean = np.array([not _DROP_CLEAN or _explains(g, fr, cfg) for g in fits])
         for a in sorted(cyc, key=lambda k: len(fits[k].indices)):
-            errs[a] = np.array([radial_error(fits[k].squircle, q[fits[a].indices]) for k in range(len(fits)) if k != a])
+            errs[a] = np.array([_outside(fits[k].squircle, q[fits[a].indices]) for k in range(len(fits)) if k != a])
             covers = np.delete(clean, a)
             if covers.any() and float(errs[a][covers].min(axis=0).max()) <= cfg.inside_tol:
                 drop = a
@@ -1202,7 +1222,7 @@ def _tighten_pass(q, vw, fr, fits: list[Fit], cfg: PerceptionConfig, grow: float
         others = [k for k in range(len(fits)) if k != a]
         if not others:
             break
-        err = np.array([radial_error(fits[k].squircle, q[g.indices]) for k in others])
+        err = np.array([_outside(fits[k].squircle, q[g.indices]) for k in others])
         covered = err.min(axis=0) <= cfg.inside_tol
         keep = g.indices[~covered]
         if not covered.any() or len(keep) < cfg.min_piece:
@@ -1298,7 +1318,7 @@ def _extend(q, vw, fr, fits: list[Fit], cfg: PerceptionConfig, grow: float, init
                     continue
                 fp = _fit_piece(q, vw, fr, np.concatenate((fp.indices, fa.indices[back])), cfg, init, cache)
                 rest = fa.indices[~back]
-                rest = rest[radial_error(fp.squircle, q[rest]) > cfg.inside_tol]
+                rest = rest[_outside(fp.squircle, q[rest]) > cfg.inside_tol]
                 if len(rest) < cfg.min_piece:
                     continue
                 fa = _fit_piece(q, vw, fr, rest, cfg, init, cache)
@@ -1364,7 +1384,7 @@ def _shrink(q, vw, fr, fits: list[Fit], cyc, adj, errs, cfg: PerceptionConfig, g
     """For :func:`_break_cycles`: the piece of the cycle ``cyc`` refitted to its returns that no
     other piece contains (within ``inside_tol``) whose fit overlaps fewer of its neighbours in
     the cycle, keeps every free cell out (none deeper than ``free_tol``) and explains its returns;
-    the smallest such piece by area. ``errs[a]`` holds the radial errors of piece ``a``'s
+    the smallest such piece by area. ``errs[a]`` holds the :func:`_outside` errors of piece ``a``'s
     points in every other piece (in order; shape (others, points)). Returns
     ``(a, fit, [(k, indices)])`` - the returns it gave up go to the piece ``k`` that contains
     them best - or None."""
@@ -1508,7 +1528,7 @@ def _cell_key(points: np.ndarray, cfg: PerceptionConfig) -> tuple:
 def _reusable(f: Fit, q: np.ndarray, free, cfg: PerceptionConfig) -> bool:
     """``f`` (a previous fit of the same cells) still holds: every point within ``inside_tol``
     of its inside, no free point deeper than ``free_tol`` inside it."""
-    if float(radial_error(f.squircle, q).max()) > cfg.inside_tol:
+    if float(_outside(f.squircle, q).max()) > cfg.inside_tol:
         return False
     return free is None or not len(free) or float(radial_error(f.squircle, free).min()) >= -cfg.free_tol
 
@@ -1755,7 +1775,7 @@ def _local_refit(q, vw, fr, cfg: PerceptionConfig, grow: float, init, cache: dic
         idx = np.nonzero(member == k)[0]
         if len(idx) < len(cells):
             return None  # returns were dropped: decompose again
-        if not gained[k] and float(radial_error(sq, q[idx]).max()) <= cfg.inside_tol and not _deep(sq, fr, cfg):
+        if not gained[k] and float(_outside(sq, q[idx]).max()) <= cfg.inside_tol and not _deep(sq, fr, cfg):
             fits.append(Fit(sq, rms, closed, idx, p95))
             continue
         f = _fit_piece(q, vw, fr, idx, cfg, init, cache)

@@ -204,7 +204,9 @@ def test_contain_identical():
         n = int(rng.integers(1, 300))
         q = np.asarray(sq.center) + rng.normal(size=(n, 2)) * rng.uniform(0.01, 3)
         tol = float(rng.choice([0.0, 0.01, rng.uniform(0, 0.1)]))
-        assert np.array_equal(F._contain(p, q, tol), _contain_ref(p, q, tol))
+        assert np.array_equal(K.contain(p, q, tol), _contain_ref(p, q, tol))
+        per_point = tol / rng.uniform(0.05, 1.0, n)  # per-point tolerances (containment by distance)
+        assert np.array_equal(K.contain(p, q, per_point), _contain_ref(p, q, per_point))
 
 
 def test_component_labels_are_scipys():
