@@ -480,7 +480,7 @@ class Tracker:
             return current, following, beyond, None
         rest = float(self._route_rest[i]) + float(beyond)  # path length after waypoint i
         try:
-            if self.guard.config.route_pursuit:
+            if pursue:
                 point = np.array(route[i][:2])
                 if i > self._route_free:  # each waypoint checked once, when first pursued
                     if not bool(current.nf.is_free(point)):

@@ -1669,8 +1669,8 @@ def fit_cluster(points, *, views=None, free=None, config: PerceptionConfig | Non
     if not (worst > _COLD_WORST or (_COLD_DEEP and worst > 1.0 and any(_deep(f.squircle, fr, cfg) for f in fits))):
         return fits
     tried = cache.get("cold")
-    deep_warm = sum(_deep(f.squircle, fr, cfg) for f in fits)
-    if tried is not None and len(q) < _COLD_GROWTH * tried[0] and not (_COLD_WORSE and deep_warm > tried[1]):
+    deep = sum(_deep(f.squircle, fr, cfg) for f in fits)  # (of the pieces returned, recorded below)
+    if tried is not None and len(q) < _COLD_GROWTH * tried[0] and not (_COLD_WORSE and deep > tried[1]):
         return fits
     fresh: dict = {}
     cold = _fit_cluster(q, vw, free, cfg, max_pieces, split, grow, None, fresh)
@@ -1682,8 +1682,9 @@ def fit_cluster(points, *, views=None, free=None, config: PerceptionConfig | Non
         cache.clear()
         cache.update(fresh)
         fits = cold
+        deep = sum(_deep(f.squircle, fr, cfg) for f in cold)
     # (returns at this try, free cells deeper than ``free_tol`` in what it returns)
-    cache["cold"] = (len(q), sum(_deep(f.squircle, fr, cfg) for f in fits))
+    cache["cold"] = (len(q), deep)
     return fits
 
 

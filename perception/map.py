@@ -612,7 +612,7 @@ class ObstacleMap:
                 # free space that the last refits could not clear (the same fit would come
                 # back) waits twice as long per futile refit, up to 4 times (returns do not)
                 wait = 1 if cl.by_points else 2 ** min(cl.futile, _MAX_BACKOFF)
-                if (_FUTILE_GROWTH and wait > 1 and cl.pending
+                if (_FUTILE_GROWTH and wait > 1 and cl.pending and age >= _REFIT_EVERY
                         and len(self._label_cells(lab)[0]) >= _FUTILE_GROWTH * cl.cells):
                     # returns inside its estimates that the futile refit did not have: new data
                     # for the decomposition, no backoff (random73 noise-free: refitted futile
