@@ -76,7 +76,7 @@ _LM_NFEV = 30
 _INFLATE_LINEAR = 5  # inflation steps tried in order before bisection (:func:`inflate`)
 _DISTANCE_WEIGHTS = True  # fit distances to first order (:func:`_distance_weights`), not radial errors
 _REWEIGHT_TOL = 0.1  # distance weights moving more than this during a solve: solved again with the new ones
-_CONTAIN_DISTANCE = False  # containment and "within inside_tol" by distance (:func:`_outside`), not radial error (measured, not yet the default)
+_CONTAIN_DISTANCE = True  # containment and "within inside_tol" by distance (:func:`_outside`), not radial error
 _SOLVER = "lm"  # "lm" (:func:`_lm`) or "scipy" (``least_squares``, trust region reflective)
 
 

@@ -18,7 +18,7 @@ The map starts knowing only the workspace and grows from scans:
    would soon leave the inflated estimate) refits at once; other contradictions make the
    cluster pending: refitted at most once every 5 scans, together with a scan that refits
    anyway (one forest check), or alone after 20 scans (up to 4 times longer for free space
-   that the last refits could not clear, unless the cluster's returns have grown 1.1 times
+   that the last refits could not clear, unless the cluster's returns have grown 1.05 times
    since its last refit, ``_FUTILE_GROWTH``; such a futile refit, and a repair merging two
    estimates, leave the cluster pending; a pending refit after a futile one is skipped while
    the cluster's returns, nearby free cells and estimates are those of that refit). The
@@ -85,7 +85,7 @@ _REFIT_LATEST = 20  # scans after which a pending (non-urgent) refit runs even o
 _MERGES_PER_UPDATE = 2  # cycle merges one estimate may take part in within one update
 _SKIP_SAME = True  # a pending refit after a futile one waits while the cluster's data is unchanged
 _MAX_BACKOFF = 2  # futile free-space refits double the wait, at most 2 ** _MAX_BACKOFF times
-_FUTILE_GROWTH = 1.1  # ... unless the cluster's returns have grown this many times since (0: off)
+_FUTILE_GROWTH = 1.05  # ... unless the cluster's returns have grown this many times since (0: off)
 
 
 @dataclass(frozen=True, slots=True, eq=False)

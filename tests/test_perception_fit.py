@@ -463,16 +463,19 @@ def test_direction_modes_of_a_bend_and_of_single_shapes():
             assert on[1] > 0.85 and on[0] < 0.15, on
 
 
-def test_a_warm_decomposition_over_free_space_gets_a_better_cold_one(monkeypatch):
+@pytest.mark.parametrize("by_distance", [False, True], ids=["radial", "distance"])
+def test_a_warm_decomposition_over_free_space_gets_a_better_cold_one(monkeypatch, by_distance):
     """Returns and free cells of two walls crossing in a + (the end of one pokes through the
     other), with the cluster's two estimates before the scan, recorded in `random24`'s noisy
-    drive (tests/data/random24_cross.npz). Warm-started, one piece takes the stub and comes out
-    an ellipse 0.42 m wide for a 0.19 m wall, RMS 0.048 m (1.5 times ``split_tol``, below the
+    drive (tests/data/random24_cross.npz), when containment was radial. With radial containment
+    (``_CONTAIN_DISTANCE`` off), warm-started, one piece takes the stub and comes out an
+    ellipse 0.42 m wide for a 0.19 m wall, RMS 0.048 m (1.5 times ``split_tol``, below the
     ``_COLD_WORST`` trigger) with 12 free cells deeper than ``free_cell`` inside. With
     ``_COLD_DEEP`` a piece that misses the criterion while free cells lie deep inside calls for
     the cold decomposition too, and it is taken when it holds fewer free cells, covers no more
     area and its worst piece is better, even though that piece is still a little over the
-    criterion (1.17 times)."""
+    criterion (1.17 times). With containment by distance (the default) the warm decomposition
+    is right at once: no free cell inside, IoU 0.905, with or without ``_COLD_DEEP``."""
     from pathlib import Path
 
     import perception.fit as pf
@@ -485,6 +488,7 @@ def test_a_warm_decomposition_over_free_space_gets_a_better_cold_one(monkeypatch
              if 1.5 < o.center[0] < 2.0 and 1.2 < o.center[1] < 1.45]
     assert len(truth) == 2
     lo, hi = d["q"].min(axis=0) - 0.2, d["q"].max(axis=0) + 0.2
+    monkeypatch.setattr(pf, "_CONTAIN_DISTANCE", by_distance)
     out = []
     for on in (False, True):
         monkeypatch.setattr(pf, "_COLD_DEEP", on)
@@ -496,6 +500,9 @@ def test_a_warm_decomposition_over_free_space_gets_a_better_cold_one(monkeypatch
         deep = sum(int(np.count_nonzero(radial_error(p, d["free"]) < -cfg.free_cell)) for p in pieces)
         out.append((deep, sum(p.area for p in pieces), _union_iou(pieces, truth, lo, hi)))
     (d0, a0, i0), (d1, a1, i1) = out
+    if by_distance:
+        assert d0 == d1 == 0 and min(i0, i1) > 0.85, out  # 0.905 both ways
+        return
     assert d1 < d0 and a1 < a0, out  # 12 -> 1 free cells, 0.74 -> 0.58 m^2
     assert i1 > i0 + 0.1, out  # 0.67 -> 0.82
 
