@@ -1283,7 +1283,9 @@ def _extend(q, vw, fr, fits: list[Fit], cfg: PerceptionConfig, grow: float, init
     own band beyond ``P``'s returns (:func:`_band_beyond`), then those it contains within
     ``inside_tol``; that pair is taken when both are clean, the tree is unchanged and the union
     is no larger (``random12`` noise-free: a bar poking through a wall whose end is flush with
-    the bar's face, IoU 0.774 -> 0.870)."""
+    the bar's face, IoU 0.774 -> 0.870). With ``_EXTEND_CORE`` a hand-over that leaves a piece
+    unclean is tried once more by :func:`_core_split` (``P``'s wall fitted without a wide band of
+    ``A``'s axis; walls crossing obliquely), under the same tree and area conditions."""
     fits = list(fits)
     n = len(fits)
     for p in range(n):
@@ -1324,7 +1326,13 @@ def _extend(q, vw, fr, fits: list[Fit], cfg: PerceptionConfig, grow: float, init
                 fa = _fit_piece(q, vw, fr, rest, cfg, init, cache)
                 area = 1.0  # both explain their returns now, where the donor did not: no larger
             if not (_clean(fa, fr, cfg) and _clean(fp, fr, cfg)):
-                continue
+                if not _EXTEND_CORE:
+                    continue
+                core = _core_split(q, vw, fr, A, P, u, v, side, end, half_thick, cfg, init, cache)
+                if core is None:
+                    continue
+                fa, fp = core
+                area = _EXTEND_AREA
             if not _overlap(fa.squircle, fp.squircle, grow) or any(
                     _overlap(f.squircle, fits[k].squircle, grow) != _overlap(g.squircle, fits[k].squircle, grow)
                     for k in range(n) if k not in (a, p) for f, g in ((fa, A), (fp, P))):
@@ -1343,6 +1351,43 @@ def _extend(q, vw, fr, fits: list[Fit], cfg: PerceptionConfig, grow: float, init
 
 
 _EXTEND_BACK = True  # _extend's second step: the clean donor takes back its end
+_EXTEND_CORE = True  # _extend's alternative: the crossed wall fitted without a wide band, the returns outside it handed over
+
+
+def _clean_distances(f: Fit, q: np.ndarray, fr, cfg: PerceptionConfig) -> bool:
+    """:func:`_clean` with the criterion on the distances of ``f``'s returns to its squircle
+    (:func:`_distances`), not its solve's radial errors."""
+    rms, p95 = _distances(f.squircle, _subsample(q[f.indices], _MAX_POINTS))
+    return rms <= cfg.split_tol and p95 <= 3 * cfg.split_tol and not _deep(f.squircle, fr, cfg)
+
+
+def _core_split(q, vw, fr, A: Fit, P: Fit, u, v, side: float, end: float, half_thick: float,
+                cfg: PerceptionConfig, init, cache):
+    """For :func:`_extend`, when handing ``A``'s band over did not leave both pieces clean: a
+    wall ``P`` crossed obliquely by the elongated ``A``, whose end pokes out of ``P``'s far
+    face. The band of ``A``'s axis at ``A``'s half-thickness plus ``split_tol`` holds, across
+    an oblique crossing, returns of ``P``'s faces too, and misses part of the poking end
+    (``random35`` noisy: walls crossing at 59 degrees, the crossed wall's piece 0.31 m thick
+    for a 0.19 m wall). So ``P``'s wall is fitted without a wide band (``A``'s half-thickness
+    plus ``3 split_tol``, from ``3 split_tol`` before ``A``'s end; ``u``, ``v``: ``P``'s
+    returns along and across ``A``'s axis), the band's returns it does not contain (within
+    ``inside_tol``) go to ``A`` and the rest back to ``P``. Both pieces are judged by their
+    distances (:func:`_clean_distances`: the radial errors of a long noisy bar exceed them
+    several times near its ends). Returns the refitted ``(A, P)`` or None."""
+    wide = (np.abs(v) <= half_thick + 3 * cfg.split_tol) & (side * u > end - 3 * cfg.split_tol)
+    if len(P.indices) - int(np.count_nonzero(wide)) < cfg.min_piece:
+        return None
+    g = _fit_piece(q, vw, fr, P.indices[~wide], cfg, init, cache)
+    if not _clean_distances(g, q, fr, cfg):
+        return None
+    out = _outside(g.squircle, q[P.indices[wide]]) > cfg.inside_tol
+    if np.count_nonzero(out) < 3:
+        return None
+    fa = _fit_piece(q, vw, fr, np.concatenate((A.indices, P.indices[wide][out])), cfg, init, cache)
+    fp = _fit_piece(q, vw, fr, np.concatenate((P.indices[~wide], P.indices[wide][~out])), cfg, init, cache)
+    if not (_clean_distances(fa, q, fr, cfg) and _clean_distances(fp, q, fr, cfg)):
+        return None
+    return fa, fp
 
 
 def _clean(f: Fit, fr, cfg: PerceptionConfig, scale: float = 1.0) -> bool:
