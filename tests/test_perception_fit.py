@@ -710,6 +710,29 @@ def test_containment_by_distance_keeps_a_noisy_thin_bar_thin(monkeypatch, on):
         assert long_ > 1.3 and rms > 0.025, (long_, thick, rms)
 
 
+def _recorded(name: str, seed: int, xlim, ylim):
+    """A cluster recorded at the end of a noisy drive (``tests/data/<name>.npz``: returns
+    ``q``, views ``v``, free cells ``free``), the drive's perception config, the true
+    obstacles of ``random<seed>`` centred within ``xlim`` x ``ylim`` and the IoU window."""
+    from pathlib import Path
+
+    from tests.worldgen import random_forest_world
+
+    d = np.load(Path(__file__).parent / "data" / f"{name}.npz")
+    cfg = PerceptionConfig.from_lidar(range_max=1.0, angle_increment=math.radians(1.0), noise_std=0.01)
+    truth = [o for o in random_forest_world(seed, gap=0.3).obstacles
+             if xlim[0] < o.center[0] < xlim[1] and ylim[0] < o.center[1] < ylim[1]]
+    return d, cfg, truth, d["q"].min(axis=0) - 0.2, d["q"].max(axis=0) + 0.2
+
+
+def _fit_recorded(d, cfg) -> list:
+    """Cold :func:`fit_cluster` of a recorded cluster; every return is contained."""
+    fits = fit_cluster(d["q"], views=d["v"], free=d["free"], config=cfg, grow=0.105, cache={})
+    pieces = [f.squircle for f in fits]
+    assert np.min([_outside(p, d["q"]) for p in pieces], axis=0).max() <= cfg.inside_tol + 1e-9
+    return fits
+
+
 @pytest.mark.parametrize("on", [False, True])
 def test_a_noisy_long_bar_is_one_squircle_by_its_distances(monkeypatch, on):
     """The returns and free cells of one noisy 1.19 x 0.16 m bar at the end of `random76`'s
@@ -720,21 +743,12 @@ def test_a_noisy_long_bar_is_one_squircle_by_its_distances(monkeypatch, on):
     overlapping pieces (IoU 0.62 before ``_EXTEND_CORE``, one piece 0.26 m thick over free
     space; 0.78 with it); judged by its distances it is one squircle (IoU 0.85;
     docs/perception.md, "Measured", twenty-ninth session)."""
-    from pathlib import Path
-
     import perception.fit as pf
-    from tests.worldgen import random_forest_world
 
     monkeypatch.setattr(pf, "_ONE_DISTANCE", on)
-    d = np.load(Path(__file__).parent / "data" / "random76_bar.npz")
-    cfg = PerceptionConfig.from_lidar(range_max=1.0, angle_increment=math.radians(1.0), noise_std=0.01)
-    truth = [o for o in random_forest_world(76, gap=0.3).obstacles
-             if 1.1 < o.center[0] < 1.3 and 1.9 < o.center[1] < 2.2]
+    d, cfg, truth, lo, hi = _recorded("random76_bar", 76, (1.1, 1.3), (1.9, 2.2))
     assert len(truth) == 1
-    fits = fit_cluster(d["q"], views=d["v"], free=d["free"], config=cfg, grow=0.105, cache={})
-    pieces = [f.squircle for f in fits]
-    assert np.min([_outside(p, d["q"]) for p in pieces], axis=0).max() <= cfg.inside_tol + 1e-9
-    lo, hi = d["q"].min(axis=0) - 0.2, d["q"].max(axis=0) + 0.2
+    pieces = [f.squircle for f in _fit_recorded(d, cfg)]
     iou = _union_iou(pieces, truth, lo, hi)
     if on:
         assert len(pieces) == 1 and iou > 0.8, (len(pieces), iou)
@@ -753,23 +767,15 @@ def test_a_wall_crossed_obliquely_hands_the_poking_end_over(monkeypatch, on):
     both pieces over the criterion. With ``_EXTEND_CORE`` the crossed wall is fitted without a
     wide band, the band's returns it does not contain go to the crossing wall, and both walls
     come out thin (IoU 0.68 -> 0.82; docs/perception.md, "Measured", twenty-ninth session)."""
-    from pathlib import Path
-
     import perception.fit as pf
-    from tests.worldgen import random_forest_world
 
     monkeypatch.setattr(pf, "_EXTEND_CORE", on)
-    d = np.load(Path(__file__).parent / "data" / "random35_cross.npz")
-    cfg = PerceptionConfig.from_lidar(range_max=1.0, angle_increment=math.radians(1.0), noise_std=0.01)
-    truth = [o for o in random_forest_world(35, gap=0.3).obstacles
-             if 1.1 < o.center[0] < 1.6 and 3.2 < o.center[1] < 3.8]
+    d, cfg, truth, lo, hi = _recorded("random35_cross", 35, (1.1, 1.6), (3.2, 3.8))
     assert len(truth) == 2
-    fits = fit_cluster(d["q"], views=d["v"], free=d["free"], config=cfg, grow=0.105, cache={})
+    fits = _fit_recorded(d, cfg)
     pieces = [f.squircle for f in fits]
     navigation.build_forest(Squircle(tuple(d["q"].mean(axis=0)), 8.0, 8.0, 0.0, 0.99).grow(-0.1),
                             [inflate(p, 0.1) for p in pieces])
-    assert np.min([_outside(p, d["q"]) for p in pieces], axis=0).max() <= cfg.inside_tol + 1e-9
-    lo, hi = d["q"].min(axis=0) - 0.2, d["q"].max(axis=0) + 0.2
     iou = _union_iou(pieces, truth, lo, hi)
     thick = sorted(min(p.width, p.height) for p in pieces)
     if on:
