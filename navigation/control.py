@@ -775,7 +775,7 @@ def _clearance(q: np.ndarray, fields, cfg: ControllerConfig) -> float:
 
 
 def track(pose, field: OrientedField, config: ControllerConfig = ControllerConfig(),
-          previous=None, beyond: float = 0.0) -> Command:
+          previous=None, beyond: float = 0.0, v_cap: float = math.inf) -> Command:
     """Eq. 24: command that tracks ``field`` from ``pose = (x, y, theta)``.
 
     ``previous = (v, omega, dt)``: the command sent ``dt`` seconds ago; the new one then
@@ -788,28 +788,33 @@ def track(pose, field: OrientedField, config: ControllerConfig = ControllerConfi
     then ``tanh(|q - q_G| + beyond)`` instead of ``tanh |q - q_G|``, so the robot slows down
     for the end of its path, not for every waypoint on the way (see the module doc).
 
+    ``v_cap``: a speed (m/s) the caller wants ``v`` at most, applied with the safety and
+    approach limits, before the rate limit (which then brakes towards it at ``accel_max``) and
+    before ``v`` enters the feed-forward of eq. 24b (``inf``: none).
+
     Raises
     ------
     NavigationError
-        Non-finite or malformed pose, previous command or ``beyond``.
+        Non-finite or malformed pose, previous command or ``beyond``; ``v_cap`` NaN or negative.
     """
     q, theta = _pose(pose)
     beyond = _beyond(beyond)
+    v_cap = _v_cap(v_cap)
     band = _band(q, field, config)
     room = _clearance(q, (field,), config)
     tg, grad, speed, away = _direction(q, field, config, band, beyond, room)
     return _command(theta, tg, grad, speed, room, config,
-                    _approach_limit(theta, (band,), config), previous, away, _turn_share((band,), config))
+                    min(_approach_limit(theta, (band,), config), v_cap), previous, away, _turn_share((band,), config))
 
 
 def track_point(pose, point, field: OrientedField, config: ControllerConfig = ControllerConfig(),
-                previous=None, beyond: float = 0.0) -> Command:
+                previous=None, beyond: float = 0.0, v_cap: float = math.inf) -> Command:
     """Eq. 24 on the bearing of a visible ``point (2,)`` instead of a field's direction.
 
     ``theta_gamma = atan2(p - q)``, its gradient exact (``(d_y, -d_x) / |d|^2`` for
     ``d = p - q``), the speed factor ``tanh(|p - q| + beyond)``; the heading gate, saturation,
     safety limit (on ``field``'s grown obstacles and workspace), escape band (``field``'s
-    ``Upsilon``) and rate limit exactly as :func:`track`. Not in the paper: the route rescue of
+    ``Upsilon``), ``v_cap`` and rate limit exactly as :func:`track`. Not in the paper: the route rescue of
     :class:`~navigation.tracker.Tracker` uses it for the straight segments of a route whose
     fields run the long way round (module doc there). The safety limit alone keeps the robot
     off the boundaries: a point that is not visible is approached until the robot stops.
@@ -817,10 +822,12 @@ def track_point(pose, point, field: OrientedField, config: ControllerConfig = Co
     Raises
     ------
     NavigationError
-        Non-finite or malformed pose, point, previous command or ``beyond``.
+        Non-finite or malformed pose, point, previous command or ``beyond``; ``v_cap`` NaN or
+        negative.
     """
     q, theta = _pose(pose)
     beyond = _beyond(beyond)
+    v_cap = _v_cap(v_cap)
     p, single = as_points(point, "point")
     if not single:
         raise PointsError(f"Expected `point` to have shape (2,), got {np.shape(point)}.")
@@ -830,7 +837,7 @@ def track_point(pose, point, field: OrientedField, config: ControllerConfig = Co
     tg, grad, dist = _bearing(q, p[0])
     if tg is None:  # on the point: hold the heading
         tg = theta
-    return _command(theta, tg, grad, math.tanh(dist + beyond), room, config, math.inf, previous, away)
+    return _command(theta, tg, grad, math.tanh(dist + beyond), room, config, v_cap, previous, away)
 
 
 def _bearing(q: np.ndarray, p: np.ndarray) -> tuple[float | None, np.ndarray, float]:
@@ -841,6 +848,16 @@ def _bearing(q: np.ndarray, p: np.ndarray) -> tuple[float | None, np.ndarray, fl
     if not r2 > 1e-24:
         return None, np.zeros(2), math.sqrt(r2)
     return math.atan2(d[1], d[0]), np.array([d[1], -d[0]]) / r2, math.sqrt(r2)
+
+
+def _v_cap(v_cap) -> float:
+    try:
+        c = float(v_cap)
+    except (TypeError, ValueError):
+        c = math.nan
+    if not c >= 0.0:
+        raise NavigationError(f"v_cap must be a speed >= 0 (m/s) or inf, got {v_cap!r}")
+    return c
 
 
 def _beyond(beyond) -> float:
@@ -866,19 +883,22 @@ def _switch(gamma: float, cfg: ControllerConfig) -> tuple[float, float]:
 
 
 def track_waypoints(pose, current: OrientedField, following: OrientedField | None = None,
-                    config: ControllerConfig = ControllerConfig(), previous=None, beyond: float = 0.0) -> Command:
+                    config: ControllerConfig = ControllerConfig(), previous=None, beyond: float = 0.0,
+                    v_cap: float = math.inf) -> Command:
     """Eq. 25: track the blend of the current and following waypoints' fields.
 
-    With ``following=None`` this is :func:`track` towards ``current``; ``previous`` as there.
-    ``beyond``: path length after ``current``'s goal (through ``following``'s and on), as in
-    :func:`track`; ``following``'s speed factor uses ``beyond - |q_{n+1} - q_n|``.
+    With ``following=None`` this is :func:`track` towards ``current``; ``previous`` and
+    ``v_cap`` as there. ``beyond``: path length after ``current``'s goal (through
+    ``following``'s and on), as in :func:`track`; ``following``'s speed factor uses
+    ``beyond - |q_{n+1} - q_n|``.
     """
     q, theta = _pose(pose)
     if following is None:
-        return track(pose, current, config, previous, beyond)
+        return track(pose, current, config, previous, beyond, v_cap)
     beyond = _beyond(beyond)
+    v_cap = _v_cap(v_cap)
     bands = (_band(q, current, config), _band(q, following, config))
     room = _clearance(q, (current, following), config)
     tg, grad, speed, away = _blend(q, current, following, config, bands, beyond, room)
     return _command(theta, tg, grad, speed, room, config,
-                    _approach_limit(theta, bands, config), previous, away, _turn_share(bands, config))
+                    min(_approach_limit(theta, bands, config), v_cap), previous, away, _turn_share(bands, config))

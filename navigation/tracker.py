@@ -414,10 +414,11 @@ class Tracker:
         return 0.0, 0.0, _horizon(self.config)  # from rest, one period ago
 
     def command(self, t: float, pose, current: OrientedField, following: OrientedField | None = None,
-                beyond: float = 0.0) -> Command:
+                beyond: float = 0.0, v_cap: float = math.inf) -> Command:
         """The command for ``pose = (x, y, theta)`` at time ``t`` (s) towards ``current``
         (blended into ``following`` near ``current``'s goal, eq. 25; ``beyond``: the path length
-        after ``current``'s goal, :func:`~navigation.control.track`)."""
+        after ``current``'s goal, ``v_cap``: a speed cap before the rate limit,
+        :func:`~navigation.control.track`)."""
         q, th = _pose(pose)  # the controller's pose check, before the guard records the position
         t = float(t)
         point = None  # a route waypoint pursued along the straight segment
@@ -431,10 +432,11 @@ class Tracker:
             mode = Mode.PLAIN  # an odd-numbered route (the one tracked now) with the plain controller
         self._mode = mode
         if point is not None:
-            cmd = track_point(pose, point, current, self.config, previous=self._previous(t), beyond=beyond)
+            cmd = track_point(pose, point, current, self.config, previous=self._previous(t), beyond=beyond,
+                              v_cap=v_cap)
         else:
             cmd = track_waypoints(pose, current, following, self._configs[mode],
-                                  previous=self._previous(t), beyond=beyond)
+                                  previous=self._previous(t), beyond=beyond, v_cap=v_cap)
         self._sent = (t, cmd.v, cmd.omega)
         return cmd
 

@@ -160,7 +160,13 @@ Choices where the paper is vague, and why
   heading can be driven (lower speed is always safe). Measured with ``python -m
   benchmarks.executive --jitter 16 --jobs 2`` (208 runs, with ``--set turn_cap=false``
   for the code before): within 1.25 x 192 -> 195, total distance 1777.2 -> 1744.4 m,
-  mission time 5130 -> 5083 s, 208/208 completed and 0 collisions both.
+  mission time 5130 -> 5083 s, 208/208 completed and 0 collisions both. In the rate-limited
+  mode (the default controller since the twenty-seventh session) the cap cannot cut ``v`` at
+  once: with ``turn_cap_rate_limited`` (twenty-ninth session) it goes to the tracker as
+  ``v_cap`` (:func:`navigation.control.track`), a target the rate limit brakes towards at
+  ``accel_max`` before ``v`` enters eq. 24b's feed-forward; the robot slows down before a
+  waypoint it must turn sharply onto instead of circling past it (it was off in that mode
+  before, docs/executive.md, twenty-ninth session).
 * **Known obstacles** (``known_obstacles`` in the world file, or all with ``known=True``) are
   used as given; lidar returns on them are dropped before perception (a NaN range: no return
   and no free-space evidence). When the known obstacles grown by the robot radius are not a
@@ -343,8 +349,11 @@ class ExecutiveConfig:
         "Centred waypoints"). ``0`` keeps the trees' vertices.
     turn_cap : bool
         Cap ``v`` so that the robot can turn onto the waypoint it tracks
-        (:func:`reachable_speed`; module doc, "Reachable turns"); never in the rate-limited
-        mode.
+        (:func:`reachable_speed`; module doc, "Reachable turns"); in the rate-limited mode only
+        with ``turn_cap_rate_limited``, as a target the rate limit brakes towards.
+    turn_cap_rate_limited : bool
+        The turn cap in the rate-limited mode too (``v_cap`` of
+        :meth:`navigation.Tracker.command`).
     align_angle, align_time : float
         Turning onto a leg: for up to ``align_time`` seconds after a leg is set, while the
         tracked direction is more than ``align_angle`` (radians, below ``pi / 2``) from the
@@ -429,6 +438,7 @@ class ExecutiveConfig:
     stuck_progress: float = 0.05
     centre_reach: float = 0.12
     turn_cap: bool = True
+    turn_cap_rate_limited: bool = True
 
     def __post_init__(self):
         check_numbers(self, ("buffer", "fallback_buffer", "check_margin", "blocked_timeout", "detour_ratio",
@@ -443,7 +453,7 @@ class ExecutiveConfig:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:
                 raise TampError(f"ExecutiveConfig.{name} must be a positive int, got {v!r}")
-        for name in ("refit_weights", "shortcut_legs", "turn_cap"):
+        for name in ("refit_weights", "shortcut_legs", "turn_cap", "turn_cap_rate_limited"):
             if not isinstance(getattr(self, name), bool):
                 raise TampError(f"ExecutiveConfig.{name} must be a bool, got {getattr(self, name)!r}")
         try:
@@ -1478,9 +1488,14 @@ class Executive:
         fol = None
         if self.wp + 1 < len(self.leg) and switch_weight(float(np.linalg.norm(q - cur.goal)), self.control) > 0.0:
             fol = self._field(self.leg[self.wp + 1])
+        # reachable turns (module doc): in the rate-limited mode the cap goes in before the rate
+        # limit, which brakes towards it; without that mode it is applied to the command below
+        rate_limited = self.control.accel_max > 0
+        v_cap = (reachable_speed(p, self.leg[self.wp], self.control.omega_max)
+                 if self.config.turn_cap and rate_limited and self.config.turn_cap_rate_limited else math.inf)
         # crawl guard: the stand-off while the robot crawls (navigation.tracker)
         try:
-            cmd = self._tracker.command(self.time, p, cur, fol, self._beyond())
+            cmd = self._tracker.command(self.time, p, cur, fol, self._beyond(), v_cap=v_cap)
         except NavigationError as err:
             self._note(f"controller refused the pose: {err}")
             return 0.0, 0.0
@@ -1489,7 +1504,7 @@ class Executive:
                 cmd = replace(cmd, v=0.0)  # turn (eq. 24b) on the spot
             else:
                 self._align_until = -math.inf  # aligned once: eq. 24 from here on
-        if self.config.turn_cap and cmd.v > 0.0 and not self.control.accel_max > 0:
+        if self.config.turn_cap and cmd.v > 0.0 and not rate_limited:
             cap = reachable_speed(p, self.leg[self.wp], self.control.omega_max)
             if cap < cmd.v:
                 cmd = replace(cmd, v=cap)  # (module doc, "Reachable turns")

@@ -366,6 +366,41 @@ def test_rate_limit_bounds_the_change_from_the_previous_command():
             track((1.0, 1.0, 0.0), field, cfg, previous=bad)
 
 
+def test_v_cap_is_a_target_the_rate_limit_brakes_towards():
+    """``v_cap`` caps ``v`` with the safety and approach limits: without the rate limit the
+    command is at most the cap (the uncapped one where that is below it) and its turn rate
+    uses the capped ``v``; with it the command brakes towards the cap by at most ``accel_max
+    dt`` and never exceeds the uncapped command. ``track_waypoints`` and ``track_point`` take
+    the same cap; NaN or negative caps are refused."""
+    world = shared_world("office")
+    r = world.robot.radius
+    lim = ControllerConfig.from_robot(world.robot, **RATE_LIMITED)
+    unl = ControllerConfig.from_robot(world.robot, **UNLIMITED)
+    field = OrientedField(navigation.NavigationFunction(world, goal=(6.4, 3.3), inflation=r), heading=0.0)
+    following = OrientedField(navigation.NavigationFunction(world, goal=(6.0, 3.0), inflation=r), heading=1.0)
+    rng = np.random.default_rng(5)
+    for s in random_free_points(world, 60, rng, margin=r + 0.005):
+        pose = (s[0], s[1], rng.uniform(-np.pi, np.pi))
+        cap = rng.uniform(0.0, unl.v_max)
+        free, capped = track(pose, field, unl), track(pose, field, unl, v_cap=cap)
+        assert capped.v == pytest.approx(min(free.v, cap), abs=1e-12)
+        pv, pw, dt = rng.uniform(0, lim.v_max), rng.uniform(-lim.omega_max, lim.omega_max), 0.1
+        a = track(pose, field, lim, previous=(pv, pw, dt))
+        b = track(pose, field, lim, previous=(pv, pw, dt), v_cap=cap)
+        assert b.v <= a.v + 1e-12
+        assert abs(b.v - pv) <= lim.accel_max * dt + 1e-12 or b.v == 0.0 or b.v == a.v
+        assert b.v <= max(cap, pv - lim.accel_max * dt) + 1e-12
+        w = track_waypoints(pose, field, following, lim, previous=(pv, pw, dt), v_cap=cap)
+        assert w.v <= max(cap, pv - lim.accel_max * dt) + 1e-12
+        assert track(pose, field, lim, previous=(pv, pw, dt), v_cap=math.inf) == a
+    for bad in (math.nan, -0.1, "x"):
+        with pytest.raises(NavigationError):
+            track((1.0, 1.0, 0.0), field, lim, v_cap=bad)
+        with pytest.raises(NavigationError):
+            track_waypoints((1.0, 1.0, 0.0), field, following, lim, v_cap=bad)
+        with pytest.raises(NavigationError):
+            navigation.control.track_point((1.0, 1.0, 0.0), (2.0, 2.0), field, lim, v_cap=bad)
+
 @pytest.mark.parametrize("name", ["simple", "office"])
 def test_clearance_exact_matches_squircle_distances(name):
     """``ClearanceBound.exact`` (the oriented field's dipole strength uses it) equals the

@@ -404,6 +404,36 @@ def test_the_executive_never_drives_faster_than_it_can_turn_onto_its_waypoint(ca
     assert (over == 0) if cap else (over > 0), over
 
 
+@pytest.mark.parametrize("cap", [True, False])
+def test_the_rate_limited_executive_brakes_towards_the_speed_it_can_turn_at(cap):
+    """In the rate-limited mode (the default controller) ``turn_cap_rate_limited`` passes
+    ``reachable_speed`` of the waypoint tracked to the tracker as ``v_cap``: every command is
+    then at most that speed or as slow as braking at ``accel_max`` from the previous command
+    allows, and within the rate bound of the previous command; without it the robot drives
+    faster than it can turn somewhere. Both arrive without collision."""
+    world = _seen_gap_world()
+    ex = Executive(world, config=ExecutiveConfig(turn_cap_rate_limited=cap))
+    assert ex.control.accel_max > 0
+    sim = Simulator(world, seed=0)
+    over = late = 0
+    prev = None
+    for _ in range(400):
+        pose = tuple(sim.pose)
+        res = ex.tick(sim.pose_message(), scan=sim.scan_message(), now=sim.time)
+        if ex.state is ExecutiveState.DONE:
+            break
+        if ex.leg:
+            reach = reachable_speed(pose, ex.leg[ex.wp], ex.control.omega_max)
+            over += res.v > reach + 1e-9
+            if prev is not None:
+                late += res.v > max(reach, prev - ex.control.accel_max * 0.1) + 1e-9
+                assert abs(res.v - prev) <= ex.control.accel_max * 0.1 + 1e-9
+        prev = res.v
+        sim.step((res.v, res.omega))
+    assert ex.state is ExecutiveState.DONE and not sim.metrics.collisions
+    assert (late == 0) if cap else (over > 0), (over, late)
+
+
 def test_detour_ratio_is_validated():
     with pytest.raises(TampError, match="detour_ratio"):
         ExecutiveConfig(detour_ratio=-1.0)
