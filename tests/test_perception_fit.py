@@ -553,6 +553,86 @@ def test_the_cold_second_opinion_waits_for_the_cluster_to_grow(monkeypatch):
     assert calls == [False]
 
 
+def _scripted_cold(monkeypatch, warm, cold):
+    """Make :func:`perception.fit._fit_cluster` return ``warm`` (warm-started calls) and
+    ``cold`` (the cold tries); returns the list of calls (True: cold)."""
+    import perception.fit as pf
+
+    calls = []
+
+    def scripted(q, vw, free, cfg_, max_pieces, split, grow, init_, cache):
+        calls.append(init_ is None)
+        return list(cold if init_ is None else warm)
+
+    monkeypatch.setattr(pf, "_fit_cluster", scripted)
+    return calls
+
+
+def _square_cluster():
+    """Returns on the boundary of a 1 m square of two halves, and pieces whose boundaries lie
+    ``off`` (m) outside it: ``pieces(off, rms)`` -> two Fits (left and right halves) recording
+    that RMS."""
+    from perception.fit import Fit
+
+    sq = Squircle((0.0, 0.0), 1.0, 1.0, 0.0, 0.9)
+    q = sq.boundary_points(200)
+    left, right = np.flatnonzero(q[:, 0] < 0), np.flatnonzero(q[:, 0] >= 0)
+
+    def pieces(off: float, rms: float):
+        out = []
+        for idx, cx in ((left, -0.25), (right, 0.25)):
+            p = Squircle((cx, 0.0), 0.5 + 2 * off, 1.0 + 2 * off, 0.0, 0.9)
+            out.append(Fit(p, rms, True, idx, rms))
+        return out
+
+    return q, pieces
+
+
+def test_a_very_bad_warm_decomposition_is_tried_cold_at_every_new_return(monkeypatch):
+    """``_COLD_AGAIN``: a cluster whose warm pieces are more than ``_COLD_AGAIN`` times over the
+    criterion (by their recorded errors) is tried cold again as soon as it has a return more
+    than at its last cold try, without waiting for ``_COLD_GROWTH`` times the returns; below
+    that, or with the rule off, it waits (``random42`` noise-free: a warm ellipse over the
+    middle wall of a chain kept for its last 9 returns, 0.737 -> 0.896 with ``_COLD_HALF``)."""
+    import perception.fit as pf
+
+    cfg = PerceptionConfig.from_lidar(noise_std=0.0)
+    q, pieces = _square_cluster()
+    bad = pieces(0.06, 3.0 * cfg.split_tol)  # recorded 3 times the criterion
+    calls = _scripted_cold(monkeypatch, bad, bad)
+    fit_cluster(q, config=cfg, grow=0.105, init=[p.squircle for p in bad], cache={"cold": (len(q) - 1, 0)})
+    assert calls == [False, True]
+    for again, cache in ((0.0, {"cold": (len(q) - 1, 0)}), (pf._COLD_AGAIN, {"cold": (len(q), 0)})):
+        monkeypatch.setattr(pf, "_COLD_AGAIN", again)
+        calls.clear()
+        fit_cluster(q, config=cfg, grow=0.105, init=[p.squircle for p in bad], cache=cache)
+        assert calls == [False], (again, cache)
+    monkeypatch.setattr(pf, "_COLD_AGAIN", 4.0)  # 3 times the criterion is not enough then
+    calls.clear()
+    fit_cluster(q, config=cfg, grow=0.105, init=[p.squircle for p in bad], cache={"cold": (len(q) - 1, 0)})
+    assert calls == [False]
+
+
+@pytest.mark.parametrize("half", [0.5, 0.0])
+def test_a_cold_decomposition_much_better_than_the_warm_one_is_taken(monkeypatch, half):
+    """``_COLD_HALF``: a cold decomposition whose worst piece (by distances) is below that share
+    of the warm one's is taken even when it is over the criterion, if it holds no more free
+    cells and covers no more area; with the rule off it is not (it must meet the criterion)."""
+    import perception.fit as pf
+
+    monkeypatch.setattr(pf, "_COLD_HALF", half)
+    cfg = PerceptionConfig.from_lidar(noise_std=0.0)
+    q, pieces = _square_cluster()
+    warm = pieces(0.06, 3.0 * cfg.split_tol)  # about 6 times the criterion by distances
+    cold = pieces(0.005, 1.5 * cfg.split_tol)  # about 2 times: over it, but much better
+    w_warm, w_cold = pf._worst_piece(q, warm, cfg), pf._worst_piece(q, cold, cfg)
+    assert 1.0 < w_cold < 0.5 * w_warm, (w_cold, w_warm)
+    calls = _scripted_cold(monkeypatch, warm, cold)
+    fits = fit_cluster(q, config=cfg, grow=0.105, init=[p.squircle for p in warm], cache={})
+    assert calls == [False, True]
+    assert [f.squircle for f in fits] == [f.squircle for f in (cold if half else warm)]
+
+
 @pytest.mark.parametrize("data, noise", [("random22_bump", 0.01), ("random0_junction", 0.0)])
 def test_the_memo_keeps_every_piece_of_the_last_decomposition(monkeypatch, data, noise):
     """A refit of the same returns (warm-started from the first fit's pieces, with the cluster's
