@@ -850,24 +850,24 @@ def _bearing(q: np.ndarray, p: np.ndarray) -> tuple[float | None, np.ndarray, fl
     return math.atan2(d[1], d[0]), np.array([d[1], -d[0]]) / r2, math.sqrt(r2)
 
 
-def _v_cap(v_cap) -> float:
+def _non_negative(value, what: str, finite: bool) -> float:
+    """``value`` as a float ``>= 0`` (and finite with ``finite``), else a NavigationError
+    saying ``what`` it must be."""
     try:
-        c = float(v_cap)
+        x = float(value)
     except (TypeError, ValueError):
-        c = math.nan
-    if not c >= 0.0:
-        raise NavigationError(f"v_cap must be a speed >= 0 (m/s) or inf, got {v_cap!r}")
-    return c
+        x = math.nan
+    if not (x >= 0.0 and (math.isfinite(x) or not finite)):
+        raise NavigationError(f"{what}, got {value!r}")
+    return x
+
+
+def _v_cap(v_cap) -> float:
+    return _non_negative(v_cap, "v_cap must be a speed >= 0 (m/s) or inf", finite=False)
 
 
 def _beyond(beyond) -> float:
-    try:
-        b = float(beyond)
-    except (TypeError, ValueError):
-        b = math.nan
-    if not (math.isfinite(b) and b >= 0.0):
-        raise NavigationError(f"beyond must be a finite path length >= 0 (m), got {beyond!r}")
-    return b
+    return _non_negative(beyond, "beyond must be a finite path length >= 0 (m)", finite=True)
 
 
 def switch_weight(distance: float, config: ControllerConfig = ControllerConfig()) -> float:

@@ -1356,9 +1356,8 @@ _EXTEND_CORE = True  # _extend's alternative: the crossed wall fitted without a 
 
 def _clean_distances(f: Fit, q: np.ndarray, fr, cfg: PerceptionConfig) -> bool:
     """:func:`_clean` with the criterion on the distances of ``f``'s returns to its squircle
-    (:func:`_distances`), not its solve's radial errors."""
-    rms, p95 = _distances(f.squircle, _subsample(q[f.indices], _MAX_POINTS))
-    return rms <= cfg.split_tol and p95 <= 3 * cfg.split_tol and not _deep(f.squircle, fr, cfg)
+    (:func:`_worst_piece`), not its solve's radial errors."""
+    return _worst_piece(q, [f], cfg) <= 1.0 and not _deep(f.squircle, fr, cfg)
 
 
 def _core_split(q, vw, fr, A: Fit, P: Fit, u, v, side: float, end: float, half_thick: float,
@@ -1729,8 +1728,9 @@ def fit_cluster(points, *, views=None, free=None, config: PerceptionConfig | Non
     w_cold = _worst_piece(q, cold, cfg)
     d_cold = sum(_deep(f.squircle, fr, cfg, cfg.free_cell) for f in cold)
     d_warm = sum(_deep(f.squircle, fr, cfg, cfg.free_cell) for f in fits)
-    if ((w_cold <= 1.0 or (_COLD_DEEP and d_cold < d_warm and w_cold < _worst_piece(q, fits, cfg))
-         or (_COLD_HALF and w_cold < _COLD_HALF * _worst_piece(q, fits, cfg)))
+    w_warm = _worst_piece(q, fits, cfg) if w_cold > 1.0 else math.inf  # (only needed then)
+    if ((w_cold <= 1.0 or (_COLD_DEEP and d_cold < d_warm and w_cold < w_warm)
+         or (_COLD_HALF and w_cold < _COLD_HALF * w_warm))
             and d_cold <= d_warm and sum(f.squircle.area for f in cold) <= sum(f.squircle.area for f in fits)):
         cache.clear()
         cache.update(fresh)

@@ -238,26 +238,34 @@ def _scale(sq: Squircle, d: float) -> Squircle:
     return Squircle(sq.center, sq.width + 2 * d, sq.height + 2 * d, sq.theta, sq.s)
 
 
+def _frame(sq: Squircle, p):
+    """``p`` in the frame of ``sq``: ``(u, h, axes)``, its coordinates along the two axes of
+    ``sq``, the half-extents ``(width / 2, height / 2)`` and the axes' unit vectors."""
+    c, s = math.cos(sq.theta), math.sin(sq.theta)
+    dx, dy = p[0] - sq.center[0], p[1] - sq.center[1]
+    return (dx * c + dy * s, dy * c - dx * s), (sq.width / 2, sq.height / 2), ((c, s), (-s, c))
+
+
+def _facing_axis(u, h) -> int:
+    """The axis whose face ``p`` (frame coordinates ``u``, half-extents ``h``) lies in front of:
+    the larger ``|u| / h`` (0 on a tie)."""
+    return 0 if abs(u[0]) / h[0] >= abs(u[1]) / h[1] else 1
+
+
 def _rect_gap(sq: Squircle, p) -> float:
     """Distance from ``p`` to the rectangle ``width x height`` of ``sq`` (0 inside): a lower
     bound of the distance to ``sq``, which lies inside it (``g >= max(|x|, |y|)``)."""
-    c, s = math.cos(sq.theta), math.sin(sq.theta)
-    dx, dy = p[0] - sq.center[0], p[1] - sq.center[1]
-    u = abs(dx * c + dy * s) - sq.width / 2
-    v = abs(dy * c - dx * s) - sq.height / 2
-    return math.hypot(max(u, 0.0), max(v, 0.0))
+    u, h, _ = _frame(sq, p)
+    return math.hypot(max(abs(u[0]) - h[0], 0.0), max(abs(u[1]) - h[1], 0.0))
 
 
 def _extend(sq: Squircle, p: np.ndarray, d: float) -> Squircle:
     """``sq`` with its face towards ``p`` moved out by ``d`` (the opposite face stays): a
     superset for ``d > 0``."""
-    c, s = math.cos(sq.theta), math.sin(sq.theta)
-    dx, dy = p[0] - sq.center[0], p[1] - sq.center[1]
-    u = (dx * c + dy * s, dy * c - dx * s)
-    h = (sq.width / 2, sq.height / 2)
-    k = 0 if abs(u[0]) / h[0] >= abs(u[1]) / h[1] else 1
+    u, h, axes = _frame(sq, p)
+    k = _facing_axis(u, h)
     sgn = 1.0 if u[k] >= 0 else -1.0
-    ax = (c, s) if k == 0 else (-s, c)
+    ax = axes[k]
     ctr = (sq.center[0] + ax[0] * sgn * d / 2, sq.center[1] + ax[1] * sgn * d / 2)
     w, hh = (sq.width + d, sq.height) if k == 0 else (sq.width, sq.height + d)
     return Squircle(ctr, w, hh, sq.theta, sq.s)
@@ -1066,12 +1074,8 @@ class ObstacleMap:
     @staticmethod
     def _trim_axes(sq: Squircle, p: np.ndarray) -> list[int]:
         """The axes whose face towards ``p`` a trim may move: the one ``p`` lies in front of
-        (largest ``|u| / h`` in the estimate's frame) first, then, with ``_TRIM_BOTH``, the other."""
-        th = sq.theta
-        c, s = math.cos(th), math.sin(th)
-        dx, dy = p[0] - sq.center[0], p[1] - sq.center[1]
-        u = np.abs([dx * c + dy * s, dy * c - dx * s]) / np.array([sq.width / 2, sq.height / 2])
-        k = int(np.argmax(u))
+        (:func:`_facing_axis`) first, then, with ``_TRIM_BOTH``, the other."""
+        k = _facing_axis(*_frame(sq, p)[:2])
         return [k, 1 - k] if _TRIM_BOTH else [k]
 
     def _cut(self, sq: Squircle, p: np.ndarray, need: float, k: int) -> tuple[Squircle, Squircle, bool] | None:
@@ -1080,21 +1084,16 @@ class ObstacleMap:
         False: still short after 12 steps), or None when less than ``min_extent`` would be left."""
         inf = None
         for _ in range(12):
-            th = sq.theta
-            c, s = math.cos(th), math.sin(th)
-            dx, dy = p[0] - sq.center[0], p[1] - sq.center[1]
-            u = np.array([dx * c + dy * s, dy * c - dx * s])
-            h = np.array([sq.width / 2, sq.height / 2])
+            u, h, axes = _frame(sq, p)
             sgn = 1.0 if u[k] >= 0 else -1.0
             face = abs(u[k]) - need - 0.01  # new position of the face towards p
             newh = (face + h[k]) / 2
             if newh * 2 < self.config.min_extent:
                 return None
             shift = sgn * (face - h[k]) / 2
-            axis = np.array([c, s]) if k == 0 else np.array([-s, c])
-            ctr = np.asarray(sq.center) + axis * shift
+            ctr = np.asarray(sq.center) + np.array(axes[k]) * shift
             w, hh = (2 * newh, sq.height) if k == 0 else (sq.width, 2 * newh)
-            sq = Squircle((float(ctr[0]), float(ctr[1])), w, hh, th, sq.s)
+            sq = Squircle((float(ctr[0]), float(ctr[1])), w, hh, sq.theta, sq.s)
             # clear by ``need``? (the rectangle gap is a lower bound of the distance: the exact
             # distance only when it does not already decide; the inflation only when clear)
             if _rect_gap(sq, p) >= need or float(sq.distance(p)) >= need:
