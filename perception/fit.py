@@ -1692,13 +1692,14 @@ def fit_cluster(points, *, views=None, free=None, config: PerceptionConfig | Non
     than the pieces that try returned (``random85`` noise-free: a good cold decomposition at
     193 returns, then, refitted warm together with a cluster that joined it, a wall's piece
     holding returns of the other wall, 4 free cells inside, RMS 1.9 ``split_tol``, at 230
-    returns, short of the 1.2 times: IoU 0.730), or, with ``_COLD_AGAIN``, at any new return
-    while a warm piece is more than ``_COLD_AGAIN`` times over the criterion. With
-    ``_COLD_HALF`` the cold pieces are also taken when their worst piece is below that share
-    of the warm one's, with no more free cells and no more area (``random42`` noise-free: a
-    warm ellipse over the middle wall of a chain, 2.75 times over the criterion, kept for the
-    drive's last 9 returns; the cold try at its last return, worst 2.14 against 4.73 and
-    0.57 against 0.69 m^2, is taken: IoU 0.737 -> 0.896).
+    returns, short of the 1.2 times: IoU 0.730), or, with ``_COLD_AGAIN`` (off by default), at
+    any new return while a warm piece is more than ``_COLD_AGAIN`` times over the criterion.
+    With ``_COLD_HALF`` (off by default) the cold pieces are also taken when their worst piece
+    is below that share of the warm one's, with no more free cells and no more area
+    (``random42`` noise-free with 2.5 and 0.5: a warm ellipse over the middle wall of a chain,
+    2.75 times over the criterion, kept for the drive's last 9 returns; the cold try at its
+    last return, worst 2.14 against 4.73 and 0.57 against 0.69 m^2, is taken: IoU 0.737 ->
+    0.896; but the repeated cold tries lift ``random50``'s executive tick p95 from 13 to 24 ms).
 
     Returns
     -------
@@ -1746,8 +1747,11 @@ _COLD_WORST = 2.0  # a warm piece this many times over the criterion calls for a
 _COLD_GROWTH = 1.2
 _COLD_DEEP = True  # ... or a piece that misses the criterion at all when a piece holds a free cell deeper than free_tol
 _COLD_WORSE = True  # tried again before that growth when the warm pieces hold more deep free cells than the last try left
-_COLD_AGAIN = 2.5  # ... or, at any new return, while a warm piece is this many times over the criterion (0: off)
-_COLD_HALF = 0.5  # a cold try is also taken when its worst piece is below this share of the warm one's (0: off)
+# measured, not the default (docs/perception.md, "Cold second opinion"): random42 noise-free
+# 0.737 -> 0.896 with 2.5 and 0.5, but the repeated cold tries lift random50's executive tick
+# p95 from 13 to 24 ms
+_COLD_AGAIN = 0.0  # ... or, at any new return, while a warm piece is this many times over the criterion (0: off)
+_COLD_HALF = 0.0  # a cold try is also taken when its worst piece is below this share of the warm one's (0: off)
 
 
 def _worst_recorded(fits: list[Fit], cfg: PerceptionConfig) -> float:

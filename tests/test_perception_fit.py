@@ -592,10 +592,12 @@ def test_a_very_bad_warm_decomposition_is_tried_cold_at_every_new_return(monkeyp
     """``_COLD_AGAIN``: a cluster whose warm pieces are more than ``_COLD_AGAIN`` times over the
     criterion (by their recorded errors) is tried cold again as soon as it has a return more
     than at its last cold try, without waiting for ``_COLD_GROWTH`` times the returns; below
-    that, or with the rule off, it waits (``random42`` noise-free: a warm ellipse over the
-    middle wall of a chain kept for its last 9 returns, 0.737 -> 0.896 with ``_COLD_HALF``)."""
+    that, or with the rule off (the default), it waits (``random42`` noise-free: a warm ellipse
+    over the middle wall of a chain kept for its last 9 returns, 0.737 -> 0.896 with
+    ``_COLD_HALF``)."""
     import perception.fit as pf
 
+    monkeypatch.setattr(pf, "_COLD_AGAIN", 2.5)
     cfg = PerceptionConfig.from_lidar(noise_std=0.0)
     q, pieces = _square_cluster()
     bad = pieces(0.06, 3.0 * cfg.split_tol)  # recorded 3 times the criterion
