@@ -1290,10 +1290,7 @@ def _extend(q, vw, fr, fits: list[Fit], cfg: PerceptionConfig, grow: float, init
     of the returns it holds (containment grows a piece round returns its solve did not explain:
     ``random42`` noise-free, a wall's piece 0.27 m thick round the end of a wall poking out of it
     at 45 degrees, solve RMS 0.85 ``split_tol``, held returns 2.1 times the criterion), and a
-    second step that finds no band to take back falls through to :func:`_core_split`. With
-    ``_EXTEND_PARTIAL`` a hand-over leaving ``A`` clean and ``P`` better (its worst piece below
-    that share of what it was, no deep free cell) but not clean is taken too, and ``P`` goes on
-    to the next ``A`` (a piece over a junction of three walls)."""
+    second step that finds no band to take back falls through to :func:`_core_split`."""
     fits = list(fits)
     n = len(fits)
     for p in range(n):
@@ -1327,8 +1324,6 @@ def _extend(q, vw, fr, fits: list[Fit], cfg: PerceptionConfig, grow: float, init
             fa = _fit_piece(q, vw, fr, np.concatenate((A.indices, P.indices[band])), cfg, init, cache)
             fp = _fit_piece(q, vw, fr, P.indices[~band], cfg, init, cache)
             area = _EXTEND_AREA
-            banded = fa, fp
-            partial = False
             if _EXTEND_BACK and _clean(fp, fr, cfg) and not _clean(fa, fr, cfg):
                 # the donor is clean now, the receiver not: a bar whose piece held the corner of
                 # the wall it runs into, and whose own end pokes out of that wall's far face
@@ -1349,14 +1344,9 @@ def _extend(q, vw, fr, fits: list[Fit], cfg: PerceptionConfig, grow: float, init
                 if not _EXTEND_CORE:
                     continue
                 core = _core_split(q, vw, fr, A, P, u, v, side, end, half_thick, cfg, init, cache)
-                if core is not None:
-                    fa, fp = core
-                elif (_EXTEND_PARTIAL and _clean(banded[0], fr, cfg) and not _deep(banded[1].squircle, fr, cfg)
-                      and _worst_piece(q, [banded[1]], cfg) < _EXTEND_PARTIAL * _worst_piece(q, [P], cfg)):
-                    fa, fp = banded  # A takes its end; P, better, may give more to another piece
-                    partial = True
-                else:
+                if core is None:
                     continue
+                fa, fp = core
                 area = _EXTEND_AREA
             if not _overlap(fa.squircle, fp.squircle, grow) or any(
                     _overlap(f.squircle, fits[k].squircle, grow) != _overlap(g.squircle, fits[k].squircle, grow)
@@ -1371,15 +1361,12 @@ def _extend(q, vw, fr, fits: list[Fit], cfg: PerceptionConfig, grow: float, init
                 if len(lost):
                     fp = Fit(fp.squircle, fp.rms, fp.closed, np.concatenate((fp.indices, lost)), fp.p95)
             fits[a], fits[p] = fa, fp
-            if not partial:
-                break
-            by_dist = None
+            break
     return fits
 
 
 _EXTEND_BACK = True  # _extend's second step: the clean donor takes back its end
 _EXTEND_HELD = True  # _extend also for a piece whose solve explained its returns but whose held returns miss the criterion
-_EXTEND_PARTIAL = 0.8  # ... or A takes its end clean and P's worst piece falls below this share (0: off)
 _EXTEND_CORE = True  # _extend's alternative: the crossed wall fitted without a wide band, the returns outside it handed over
 
 
