@@ -1790,7 +1790,7 @@ def fit_cluster(points, *, views=None, free=None, config: PerceptionConfig | Non
     tried = cache.get("cold")
     deep = sum(_deep(f.squircle, fr, cfg) for f in fits)  # (of the pieces returned, recorded below)
     if (tried is not None and len(q) < _COLD_GROWTH * tried[0] and not (_COLD_WORSE and deep > tried[1])
-            and not (_COLD_AGAIN and worst > _COLD_AGAIN and len(q) >= max(_COLD_AGAIN_GROWTH * tried[0], tried[0] + 1))):
+            and not (_COLD_AGAIN and worst > _COLD_AGAIN and len(q) > tried[0])):
         return fits
     fresh: dict = {}
     cold = _fit_cluster(q, vw, free, cfg, max_pieces, split, grow, None, fresh)
@@ -1819,7 +1819,6 @@ _COLD_WORSE = True  # tried again before that growth when the warm pieces hold m
 # 0.737 -> 0.896 with 2.5 and 0.5, but the repeated cold tries lift random50's executive tick
 # p95 from 13 to 24 ms
 _COLD_AGAIN = 0.0  # ... or, at any new return, while a warm piece is this many times over the criterion (0: off)
-_COLD_AGAIN_GROWTH = 1.0  # ... once its returns have grown this many times since the last try
 _COLD_HALF = 0.0  # a cold try is also taken when its worst piece is below this share of the warm one's (0: off)
 
 
