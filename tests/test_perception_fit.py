@@ -837,6 +837,20 @@ def _fit_recorded(d, cfg) -> list:
     return fits
 
 
+def _recorded_fit(name: str, seed: int, xlim, ylim, noise: float = 0.01):
+    """Cold pieces of a recorded cluster (:func:`_recorded`, :func:`_fit_recorded`): they form a
+    tree once inflated and hold every return once. Returns (data, config, fits, true
+    obstacles, IoU of the pieces' union with theirs)."""
+    d, cfg, truth, lo, hi = _recorded(name, seed, xlim, ylim, noise)
+    fits = _fit_recorded(d, cfg)
+    pieces = [f.squircle for f in fits]
+    navigation.build_forest(Squircle(tuple(d["q"].mean(axis=0)), 8.0, 8.0, 0.0, 0.99).grow(-0.1),
+                            [inflate(p, 0.1) for p in pieces])
+    held = np.sort(np.concatenate([f.indices for f in fits]))
+    assert np.array_equal(held, np.arange(len(d["q"])))
+    return d, cfg, fits, truth, _union_iou(pieces, truth, lo, hi)
+
+
 @pytest.mark.parametrize("on", [False, True])
 def test_a_noisy_long_bar_is_one_squircle_by_its_distances(monkeypatch, on):
     """The returns and free cells of one noisy 1.19 x 0.16 m bar at the end of `random76`'s
@@ -874,35 +888,15 @@ def test_a_wall_crossed_obliquely_hands_the_poking_end_over(monkeypatch, on):
     import perception.fit as pf
 
     monkeypatch.setattr(pf, "_EXTEND_CORE", on)
-    d, cfg, truth, lo, hi = _recorded("random35_cross", 35, (1.1, 1.6), (3.2, 3.8))
+    d, cfg, fits, truth, iou = _recorded_fit("random35_cross", 35, (1.1, 1.6), (3.2, 3.8))
     assert len(truth) == 2
-    fits = _fit_recorded(d, cfg)
     pieces = [f.squircle for f in fits]
-    navigation.build_forest(Squircle(tuple(d["q"].mean(axis=0)), 8.0, 8.0, 0.0, 0.99).grow(-0.1),
-                            [inflate(p, 0.1) for p in pieces])
-    iou = _union_iou(pieces, truth, lo, hi)
     thick = sorted(min(p.width, p.height) for p in pieces)
     if on:
         assert len(pieces) == 2 and iou > 0.8 and thick[-1] < 0.25, (iou, thick)
         assert all(pf._clean_distances(f, d["q"], d["free"], cfg) for f in fits)
     else:  # the crossed wall's piece swallows the poking end
         assert iou < 0.7 and thick[-1] > 0.28, (iou, thick)
-
-
-def _chain_pieces(name: str, seed: int, xlim, ylim):
-    """Cold pieces of a noise-free recorded chain of walls: they form a tree once inflated;
-    returns (pieces' squircles, their worst piece by distances each, IoU, true obstacles)."""
-    import perception.fit as pf
-
-    d, cfg, truth, lo, hi = _recorded(name, seed, xlim, ylim, noise=0.0)
-    fits = _fit_recorded(d, cfg)
-    pieces = [f.squircle for f in fits]
-    navigation.build_forest(Squircle(tuple(d["q"].mean(axis=0)), 8.0, 8.0, 0.0, 0.99).grow(-0.1),
-                            [inflate(p, 0.1) for p in pieces])
-    held = np.sort(np.concatenate([f.indices for f in fits]))
-    assert np.array_equal(held, np.arange(len(d["q"])))  # every return held once
-    worst = [pf._worst_piece(d["q"], [f], cfg) for f in fits]
-    return pieces, worst, _union_iou(pieces, truth, lo, hi), truth
 
 
 @pytest.mark.parametrize("on", [False, True])
@@ -920,7 +914,9 @@ def test_a_piece_whose_held_returns_miss_the_criterion_hands_the_poking_end_over
     import perception.fit as pf
 
     monkeypatch.setattr(pf, "_EXTEND_HELD", on)
-    pieces, worst, iou, truth = _chain_pieces("random42_chain", 42, (1.0, 2.5), (1.3, 1.7))
+    d, cfg, fits, truth, iou = _recorded_fit("random42_chain", 42, (1.0, 2.5), (1.3, 1.7), noise=0.0)
+    pieces = [f.squircle for f in fits]
+    worst = [pf._worst_piece(d["q"], [f], cfg) for f in fits]
     assert len(truth) == 3
     thick = sorted(min(p.width, p.height) for p in pieces)
     if on:
@@ -939,7 +935,9 @@ def test_returns_a_clean_neighbour_explains_are_handed_over_to_it(monkeypatch, o
     import perception.fit as pf
 
     monkeypatch.setattr(pf, "_GIVE", on)
-    pieces, worst, iou, truth = _chain_pieces("random47_chain", 47, (3.5, 5.0), (1.2, 1.5))
+    d, cfg, fits, truth, iou = _recorded_fit("random47_chain", 47, (3.5, 5.0), (1.2, 1.5), noise=0.0)
+    pieces = [f.squircle for f in fits]
+    worst = [pf._worst_piece(d["q"], [f], cfg) for f in fits]
     assert len(truth) == 3
     thickest = max(truth, key=lambda t: min(t.width, t.height))  # (0.28 m)
     wall = min(pieces, key=lambda p: math.dist(p.center, thickest.center))
@@ -963,13 +961,9 @@ def test_a_clean_receiver_takes_the_donors_stray_returns_of_its_wall(monkeypatch
     import perception.fit as pf
 
     monkeypatch.setattr(pf, "_EXTEND_GIVE", on)
-    d, cfg, truth, lo, hi = _recorded("random63_cross", 63, (1.2, 1.7), (3.2, 3.4))
+    d, cfg, fits, truth, iou = _recorded_fit("random63_cross", 63, (1.2, 1.7), (3.2, 3.4))
     assert len(truth) == 2
-    fits = _fit_recorded(d, cfg)
     pieces = [f.squircle for f in fits]
-    navigation.build_forest(Squircle(tuple(d["q"].mean(axis=0)), 8.0, 8.0, 0.0, 0.99).grow(-0.1),
-                            [inflate(p, 0.1) for p in pieces])
-    iou = _union_iou(pieces, truth, lo, hi)
     thick = sorted(min(p.width, p.height) for p in pieces)
     if on:
         assert len(pieces) == 2 and iou > 0.9 and thick[-1] < 0.3, (iou, thick)
