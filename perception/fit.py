@@ -1345,15 +1345,12 @@ def _extend(q, vw, fr, fits: list[Fit], cfg: PerceptionConfig, grow: float, init
                         continue
                     fa = _fit_piece(q, vw, fr, rest, cfg, init, cache)
                     area = 1.0  # both explain their returns now, where the donor did not: no larger
-            if _EXTEND_GIVE and area == _EXTEND_AREA and _clean(fa, fr, cfg) and not _clean(fp, fr, cfg):
+            elif _EXTEND_GIVE and _clean(fa, fr, cfg) and not _clean(fp, fr, cfg):
                 # the receiver is clean, the donor not: stray returns of the receiver's wall
                 # outside the band (noisy faces at an oblique crossing) go to it too
-                give = _outside(fa.squircle, q[fp.indices]) <= cfg.inside_tol
-                if give.any() and len(fp.indices) - int(np.count_nonzero(give)) >= cfg.min_piece:
-                    rest = _fit_piece(q, vw, fr, fp.indices[~give], cfg, init, cache)
-                    if _clean(rest, fr, cfg):
-                        fa = Fit(fa.squircle, fa.rms, fa.closed, np.concatenate((fa.indices, fp.indices[give])), fa.p95)
-                        fp = rest
+                given = _give_to(q, vw, fr, fa, fp, cfg, init, cache)
+                if given is not None and _clean(given[1], fr, cfg):
+                    fa, fp = given
             if not (_clean(fa, fr, cfg) and _clean(fp, fr, cfg)):
                 if not _EXTEND_CORE:
                     continue
@@ -1412,13 +1409,12 @@ def _give_contained(q, vw, fr, fits: list[Fit], cfg: PerceptionConfig, grow: flo
                 P, A = fits[p], fits[a]
                 if a == p or worst[a] > 1.0 or not _overlap(A.squircle, P.squircle, 0.0):
                     continue
-                give = _outside(A.squircle, q[P.indices]) <= cfg.inside_tol
-                if not give.any() or len(P.indices) - int(np.count_nonzero(give)) < cfg.min_piece:
+                given = _give_to(q, vw, fr, A, P, cfg, init, cache)
+                if given is None:
                     continue
-                g = _fit_piece(q, vw, fr, P.indices[~give], cfg, init, cache)
+                b, g = given
                 if not _clean_distances(g, q, fr, cfg):
                     continue
-                b = Fit(A.squircle, A.rms, A.closed, np.concatenate((A.indices, P.indices[give])), A.p95)
                 w_b = _worst_piece(q, [b], cfg)
                 if w_b > 1.0:
                     continue
@@ -1435,6 +1431,21 @@ def _give_contained(q, vw, fr, fits: list[Fit], cfg: PerceptionConfig, grow: flo
 
 
 _GIVE = True  # _give_contained after _extend
+
+
+def _give_to(q, vw, fr, receiver: Fit, donor: Fit, cfg: PerceptionConfig, init, cache) -> tuple[Fit, Fit] | None:
+    """The returns of ``donor`` that ``receiver`` contains (inside, or within ``inside_tol``
+    outside) handed over to it: ``(receiver holding them too, its squircle and records kept;
+    donor refitted on the rest)``, or None when there are none or fewer than ``min_piece``
+    would be left (for :func:`_extend` and :func:`_give_contained`, which judge the result)."""
+    give = _outside(receiver.squircle, q[donor.indices]) <= cfg.inside_tol
+    n_give = int(np.count_nonzero(give))
+    if not n_give or len(donor.indices) - n_give < cfg.min_piece:
+        return None
+    rest = _fit_piece(q, vw, fr, donor.indices[~give], cfg, init, cache)
+    taken = Fit(receiver.squircle, receiver.rms, receiver.closed,
+                np.concatenate((receiver.indices, donor.indices[give])), receiver.p95)
+    return taken, rest
 
 
 def _clean_distances(f: Fit, q: np.ndarray, fr, cfg: PerceptionConfig) -> bool:
