@@ -1491,8 +1491,9 @@ class Executive:
         # reachable turns (module doc): in the rate-limited mode the cap goes in before the rate
         # limit, which brakes towards it; without that mode it is applied to the command below
         rate_limited = self.control.accel_max > 0
-        v_cap = (reachable_speed(p, self.leg[self.wp], self.control.omega_max)
-                 if self.config.turn_cap and rate_limited and self.config.turn_cap_rate_limited else math.inf)
+        cap = (reachable_speed(p, self.leg[self.wp], self.control.omega_max)
+               if self.config.turn_cap and (self.config.turn_cap_rate_limited or not rate_limited) else math.inf)
+        v_cap = cap if rate_limited else math.inf
         # crawl guard: the stand-off while the robot crawls (navigation.tracker)
         try:
             cmd = self._tracker.command(self.time, p, cur, fol, self._beyond(), v_cap=v_cap)
@@ -1504,10 +1505,8 @@ class Executive:
                 cmd = replace(cmd, v=0.0)  # turn (eq. 24b) on the spot
             else:
                 self._align_until = -math.inf  # aligned once: eq. 24 from here on
-        if self.config.turn_cap and cmd.v > 0.0 and not rate_limited:
-            cap = reachable_speed(p, self.leg[self.wp], self.control.omega_max)
-            if cap < cmd.v:
-                cmd = replace(cmd, v=cap)  # (module doc, "Reachable turns")
+        if not rate_limited and cap < cmd.v:
+            cmd = replace(cmd, v=cap)  # (module doc, "Reachable turns")
         v_cmd = self._guard(p, cmd.v, cmd.omega)
         # held: the guard changed the speed (it only ever does so to slow down) and left ~0
         self._held = self._held + 1 if v_cmd != cmd.v and v_cmd < 1e-3 else 0
