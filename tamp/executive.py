@@ -136,6 +136,15 @@ Choices where the paper is vague, and why
   on ``office`` the robot at ``d3`` turned back and forth between the passage and the way
   round as the cost ratio crossed 1.25. Measured with ``python -m benchmarks.executive
   --jitter 8 --jobs 2``: within 1.25 x the tour 92 -> 96 of 104 runs, total 897.7 -> 890.2 m.
+  *Boundary buffer* (opt-in, ``boundary_buffer``): the workspace boundary is known exactly,
+  so a roadmap may keep less than its buffer from it (``RoadmapConfig.boundary_buffer``) and
+  pass between an estimate and the boundary where the paper's buffer closes the way. At 0.03
+  m it fixes ``random1`` (1.52 -> 1.21 x: a 0.52 m gap between a bar and the boundary) and
+  ``random55`` (1.45 -> 1.14 x), but the routes along the boundary it opens compete with the
+  fallback's passages and run through unexplored space: ``random42`` 1.08 -> 1.21 x,
+  ``random53`` (jittered) 1.09 -> 1.26 x. Over ``python -m benchmarks.executive --random 60
+  --jitter 4 --jobs 2`` it gives 290 of 315 runs within 1.25 x against 291, 1978.1 against
+  1964.8 m (docs/executive.md, thirty-first session), so it is off by default.
 * **Centred waypoints** (not in the paper). A tree through a passage narrower than the
   buffer allows (the fallback roadmap) turns at vertices ``fallback_buffer`` off the grown
   obstacles, i.e. 3 cm from the forest's boundary, where the navigation transformation is
@@ -297,6 +306,10 @@ class ExecutiveConfig:
     fallback_buffer : float
         Buffer of the second roadmap a transition is retried on when the first has no path
         (``0`` disables the fallback).
+    boundary_buffer : float or None
+        Buffer of every roadmap from the workspace boundary, at most that roadmap's own buffer
+        (module doc, "Buffer fallback"; measured, opt-in); ``None`` (default): the roadmap's
+        own buffer, as in the paper.
     waypoint_tolerance : float
         Distance at which the current waypoint counts as passed (m); above the switch margin
         of eq. 25 (0.1 m) so that the blend has barely started when the waypoint changes.
@@ -409,6 +422,7 @@ class ExecutiveConfig:
 
     buffer: float = 0.15
     fallback_buffer: float = 0.03
+    boundary_buffer: float | None = None
     waypoint_tolerance: float = 0.15
     check_margin: float = 0.05
     rebuild_after: int = 8
@@ -445,8 +459,9 @@ class ExecutiveConfig:
                              "seen_detour_ratio", "seen_share", "align_angle", "align_time", "guard_horizon",
                              "max_segment", "pass_beyond", "stuck_time", "stuck_progress", "centre_reach"),
                       positive=False, error=TampError)
-        if self.guard_margin is not None:
-            check_numbers(self, ("guard_margin",), positive=False, error=TampError)
+        for name in ("guard_margin", "boundary_buffer"):
+            if getattr(self, name) is not None:
+                check_numbers(self, (name,), positive=False, error=TampError)
         if not (isinstance(self.waypoint_tolerance, (int, float)) and self.waypoint_tolerance > 0):
             raise TampError(f"ExecutiveConfig.waypoint_tolerance must be > 0, got {self.waypoint_tolerance!r}")
         for name in ("rebuild_after", "n_orient", "n_headings", "max_plan_rounds", "stall_ticks", "refit_min_edges"):
@@ -509,9 +524,11 @@ class _Roads:
     its cost); :meth:`reset` rebuilds it from the model.
     """
 
-    def __init__(self, workspace: Squircle, radius: float, buffer: float, model: dict, rebuild_after: int):
+    def __init__(self, workspace: Squircle, radius: float, buffer: float, model: dict, rebuild_after: int,
+                 boundary_buffer: float | None = None):
         self.workspace, self.radius = workspace, radius
-        self.config = RoadmapConfig(buffer=buffer)
+        self.config = RoadmapConfig(buffer=buffer, boundary_buffer=(
+            None if boundary_buffer is None or boundary_buffer >= buffer else boundary_buffer))
         self.model = model
         self.rebuild_after = rebuild_after
         self.rm: Roadmap | None = None
@@ -674,9 +691,10 @@ class Executive:
         self._edge_t0: float | None = None  # when the robot left the current edge's start
         # the obstacle model by key: ("known", index) and ("estimate", perception id)
         self._model: dict = {("known", i): o for i, o in enumerate(known_obs)}
-        self._roads = [_Roads(world.workspace, r, cfg.buffer, self._model, cfg.rebuild_after)]
+        self._roads = [_Roads(world.workspace, r, cfg.buffer, self._model, cfg.rebuild_after, cfg.boundary_buffer)]
         if cfg.fallback_buffer < cfg.buffer and cfg.fallback_buffer >= 0:
-            self._roads.append(_Roads(world.workspace, r, cfg.fallback_buffer, self._model, cfg.rebuild_after))
+            self._roads.append(_Roads(world.workspace, r, cfg.fallback_buffer, self._model, cfg.rebuild_after,
+                                      cfg.boundary_buffer))
         self._known_letters = None
         # transitions: key (region a, region b) sorted -> tree or error; "@start" legs separately
         self._pair: dict[tuple[str, str], object] = {}

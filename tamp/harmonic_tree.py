@@ -311,14 +311,14 @@ def _terminal(rm: Roadmap, q: np.ndarray, start, goal, reason: TreeFailure) -> _
     m = len(rm.obstacles)
     amounts = np.full(m, r + b)
     rows = rm.P.copy()
-    # W' (the workspace shrunk by r + b) lies inside the workspace shrunk by r: a point of W'
+    # W' (the workspace shrunk by r + b_W) lies inside the workspace shrunk by r: a point of W'
     # needs no exact distance
     in_free = bool(rm.free_workspace.beta(q) < 0)
     if not in_free and not (rm.workspace.beta(q) < 0 and -float(rm.workspace.distance(q)) > r):
         raise NoTreePathError(start, goal, reason, "outside the workspace shrunk by the robot radius")
     if not in_free:
         c = -float(rm.workspace.distance(q)) - r
-        level = min(b, 0.5 * c)
+        level = min(rm.config.wall_buffer, 0.5 * c)
         for _ in range(_HALVINGS):
             if grown(rm.workspace, -(r + level)).beta(q) < 0:
                 break

@@ -12,11 +12,14 @@ costs (eq. 26) and A* (eq. 8).
 Safety notion
 -------------
 The robot is a disc of radius ``r``; the buffer is ``b``. A point or segment is *safe* when it
-stays at Euclidean distance ``>= r + b`` from every obstacle and from the workspace boundary,
-i.e. at clearance ``>= b`` in the robot's configuration space (obstacles inflated by ``r``).
+stays at Euclidean distance ``>= r + b`` from every obstacle and ``>= r + b_W`` from the
+workspace boundary, i.e. at clearance ``>= b`` (``b_W``) in the robot's configuration space
+(obstacles inflated by ``r``). ``b_W = b`` unless ``RoadmapConfig.boundary_buffer`` says
+otherwise: the paper's buffer is one number, and a caller whose boundary is known exactly while
+its obstacles are estimates (the executive) may keep a smaller margin from the boundary.
 This is certified exactly, without sampling: every obstacle ``O_j`` is replaced by the squircle
 ``G_j = O_j.grow(r + b)``, which contains ``O_j`` grown by ``r + b``
-(:meth:`navigation.Squircle.grow`), and the workspace by ``W' = W.grow(-(r + b))``. Squircles are
+(:meth:`navigation.Squircle.grow`), and the workspace by ``W' = W.grow(-(r + b_W))``. Squircles are
 convex (``beta + 1`` is the square of a norm), so
 
 * a segment avoids ``G_j`` iff ``min_t beta_j(a + t (b - a)) > 0``; ``beta_j`` is convex along
@@ -45,7 +48,8 @@ Symbols
 ``r``                      robot radius (inflation), m
 ``b``                      safety buffer (paper: 0.15 m), m
 ``G_j``                    obstacle ``j`` grown by ``r + b``
-``W'``                     workspace shrunk by ``r + b``
+``b_W``                    buffer from the workspace boundary (default ``b``), m
+``W'``                     workspace shrunk by ``r + b_W``
 ``V``                      vertex positions ``(n_V, 2)``
 ``pairs``                  visible vertex pairs ``(n_E, 2)``, ``i < j``
 =========================  ===========================================================
@@ -87,12 +91,20 @@ class RoadmapConfig:
         doubled for an obstacle until the chords between neighbouring vertices miss it.
     vicinity : float
         Longest edge (m): the "free vicinity" of a vertex; ``inf`` connects every visible pair.
+    boundary_buffer : float or None
+        Buffer ``b_W`` from the workspace boundary (m); ``None``: ``buffer``.
     """
 
     buffer: float = 0.15
     offset: float = 0.05
     vertices_per_obstacle: int = 8
     vicinity: float = math.inf
+    boundary_buffer: float | None = None
+
+    @property
+    def wall_buffer(self) -> float:
+        """``b_W``: the buffer kept from the workspace boundary."""
+        return self.buffer if self.boundary_buffer is None else self.boundary_buffer
 
     def __post_init__(self):
         for name in ("buffer", "offset", "vicinity"):
@@ -106,6 +118,11 @@ class RoadmapConfig:
             raise TampError(f"RoadmapConfig.offset must be finite and > 0, got {self.offset}")
         if not self.vicinity > 0:
             raise TampError(f"RoadmapConfig.vicinity must be > 0, got {self.vicinity}")
+        bw = self.boundary_buffer
+        if bw is not None:
+            if isinstance(bw, bool) or not isinstance(bw, (int, float)) or not (math.isfinite(bw) and bw >= 0):
+                raise TampError(f"RoadmapConfig.boundary_buffer must be None or a finite number >= 0, got {bw!r}")
+            object.__setattr__(self, "boundary_buffer", float(bw))
         n = self.vertices_per_obstacle
         if isinstance(n, bool) or not isinstance(n, int) or n < 4 or n % 4:
             raise TampError(f"RoadmapConfig.vertices_per_obstacle must be a positive multiple of 4, got {n!r}")
@@ -220,7 +237,7 @@ class Roadmap:
     buffered : tuple of Squircle
         ``G_j = obstacles[j].grow(r + b)``.
     free_workspace : Squircle
-        ``W' = workspace.grow(-(r + b))``.
+        ``W' = workspace.grow(-(r + b_W))``.
     P : (M, 7) array
         ``pack(buffered)``.
     points : (n_V, 2) array
@@ -258,7 +275,7 @@ class Roadmap:
         Raises
         ------
         WorldError
-            ``radius`` negative or the workspace too small for ``radius + buffer``.
+            ``radius`` negative or the workspace too small for ``radius + boundary buffer``.
         """
         config = RoadmapConfig() if config is None else config
         radius = float(radius)
@@ -266,7 +283,8 @@ class Roadmap:
             raise WorldError(f"robot radius must be finite and >= 0, got {radius}", "robot.radius")
         obstacles = tuple(obstacles)
         amount = radius + config.buffer
-        ws = grown(workspace, -amount) if amount > 0 else workspace
+        wall = radius + config.wall_buffer
+        ws = grown(workspace, -wall) if wall > 0 else workspace
         G = tuple(grown(o, amount) if amount > 0 else o for o in obstacles)
         P = pack(G) if G else np.zeros((0, 7))
         pts, owner = cls._candidates(G, range(len(G)), config)

@@ -26,7 +26,7 @@ from navigation.world import World
 from perception import ObstacleMap
 from service.sim import Simulator
 from tamp.executive import Executive, ExecutiveConfig, ExecutiveState, reachable_speed
-from tamp.harmonic_tree import plan_tree
+from tamp.harmonic_tree import NoTreePathError, plan_tree
 from tamp.errors import LtlSyntaxError, TampError, UnknownRegionError
 from tamp.run import main, run_mission
 
@@ -432,6 +432,36 @@ def test_the_rate_limited_executive_brakes_towards_the_speed_it_can_turn_at(cap)
         sim.step((res.v, res.omega))
     assert ex.state is ExecutiveState.DONE and not sim.metrics.collisions
     assert (late == 0) if cap else (over > 0), (over, late)
+
+
+def test_boundary_buffer_opens_the_first_roadmap_along_the_known_boundary():
+    """``boundary_buffer`` (opt-in): a known wall leaves a 0.52 m gap to the workspace boundary,
+    closed for the first roadmap at the paper's buffer (2 (r + 0.15) = 0.5 m plus the vertex
+    offset) and open when the boundary is owed 0.03 m; the mission drives through it without
+    touching anything, and the option is validated."""
+    world = World.from_dict({
+        "name": "edge", "workspace": {"center": [2.0, 1.5], "width": 4.0, "height": 3.0, "s": 0.99},
+        "obstacles": [{"center": [2.0, 1.24], "width": 0.2, "height": 2.48, "s": 0.99}],
+        "known_obstacles": [0],
+        "regions": {"a": {"center": [1.0, 2.6], "radius": 0.15}, "b": {"center": [3.0, 2.6], "radius": 0.15}},
+        "robot": {"radius": 0.1, "start": [1.0, 2.6, 0.0], "v_max": 0.5, "omega_max": 1.5},
+        "lidar": {"range": 2.0, "fov": 6.283185, "beams": 360, "noise_std": 0.0, "rate_hz": 10},
+        "task": "F b"})
+    goal = (3.0, 2.6, 0.0)
+    for bw, opens in ((None, False), (0.03, True)):
+        ex = Executive(world, config=ExecutiveConfig(boundary_buffer=bw))
+        assert ex._roads[0].current().config.wall_buffer == (0.15 if bw is None else bw)
+        try:
+            plan_tree(ex._roads[0].current(), world.robot.start, goal, ex.weights, ex.config.n_headings)
+            found = True
+        except NoTreePathError:
+            found = False
+        assert found is opens
+    r = run_mission(world, max_time=120, config=ExecutiveConfig(boundary_buffer=0.03))
+    assert r["completed"] and r["collisions"] == 0 and r["distance"] < 3.0
+    for bad in (-0.1, float("nan"), "0.03"):
+        with pytest.raises(TampError, match="boundary_buffer"):
+            ExecutiveConfig(boundary_buffer=bad)
 
 
 def test_detour_ratio_is_validated():

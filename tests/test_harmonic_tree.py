@@ -38,9 +38,10 @@ def _poses(world, rng):
     return {name: (*reg.center, float(rng.uniform(-math.pi, math.pi))) for name, reg in world.regions.items()}
 
 
-def _clearance(world_obstacles, workspace, pts):
-    """Exact distance from ``pts`` to the nearest obstacle or the workspace boundary."""
-    d = -np.atleast_1d(workspace.distance(pts))
+def _clearance(world_obstacles, workspace, pts, wall_allowance=0.0):
+    """Exact distance from ``pts`` to the nearest obstacle or the workspace boundary (less
+    ``wall_allowance``: how much less room the boundary is owed than an obstacle)."""
+    d = -np.atleast_1d(workspace.distance(pts)) + wall_allowance
     for o in world_obstacles:
         near = np.linalg.norm(pts - o.c, axis=1) < o.bounding_radius + 1.0
         if near.any():
@@ -66,7 +67,8 @@ def _check_tree(tree, rm, start, goal):
     terminal_ok = rm.safe_points(np.array([start[:2], goal[:2]]))
     for n, (u, v) in enumerate(zip(tree.waypoints, tree.waypoints[1:])):
         pts = _dense(u[:2], v[:2])
-        clear = _clearance(rm.obstacles, rm.workspace, pts)
+        # the boundary is owed r + b_W (RoadmapConfig.boundary_buffer), the obstacles r + b
+        clear = _clearance(rm.obstacles, rm.workspace, pts, rm.config.buffer - rm.config.wall_buffer)
         at_start, at_goal = n == 0, n == len(tree.waypoints) - 2
         relaxed = (at_start and not terminal_ok[0]) or (at_goal and not terminal_ok[1])
         # a terminal inside the buffer zone: its edges are only guaranteed collision-free
@@ -324,6 +326,35 @@ def _walled_world():
     walls = [Squircle((3.0, 2.0), 1.2, 0.2, 0.0, 0.99), Squircle((3.0, 1.0), 1.2, 0.2, 0.0, 0.99),
              Squircle((2.5, 1.5), 0.2, 1.2, 0.0, 0.99), Squircle((3.5, 1.5), 0.2, 1.2, 0.0, 0.99)]
     return ws, walls
+
+
+def test_boundary_buffer_opens_a_passage_along_the_known_boundary():
+    """``boundary_buffer``: a gap between an obstacle and the workspace boundary narrower than
+    ``2 (r + b)`` but wider than ``2 r + b + b_W`` is closed at the paper's buffer and open when
+    the boundary (known exactly) is owed only ``b_W``; every segment keeps ``r + b`` from the
+    obstacle and ``r + b_W`` from the boundary."""
+    ws = Squircle((2.0, 1.5), 4.0, 3.0, 0.0, 0.99)
+    r, b, bw = 0.1, 0.15, 0.03
+    gap = 2 * r + b + bw + 0.08  # 0.56 m between the wall's top and the boundary (y = 3)
+    wall = Squircle((2.0, (3.0 - gap) / 2), 0.2, 3.0 - gap, 0.0, 0.99)  # from y = 0 up
+    start, goal = (0.6, 2.7, 0.0), (3.4, 2.7, 0.0)
+    closed = Roadmap.build(ws, [wall], r)
+    with pytest.raises(NoTreePathError) as info:
+        plan_tree(closed, start, goal)
+    assert info.value.reason is TreeFailure.DISCONNECTED
+    rm = Roadmap.build(ws, [wall], r, RoadmapConfig(buffer=b, boundary_buffer=bw))
+    assert rm.config.wall_buffer == bw and closed.config.wall_buffer == b
+    tree = plan_tree(rm, start, goal)
+    _check_tree(tree, rm, start, goal)
+    assert tree.translations.sum() < 3.2  # over the wall's top, not round anything
+    # the obstacles still get the whole buffer: a gap 2 cm short of 2 r + b + b_W is closed
+    h = 3.0 - (2 * r + b + bw - 0.02)
+    taller = Squircle((2.0, h / 2), 0.2, h, 0.0, 0.99)
+    with pytest.raises(NoTreePathError):
+        plan_tree(Roadmap.build(ws, [taller], r, RoadmapConfig(buffer=b, boundary_buffer=bw)), start, goal)
+    for bad in (-0.01, float("nan"), float("inf"), True, "0.03"):
+        with pytest.raises(TampError, match="boundary_buffer"):
+            RoadmapConfig(boundary_buffer=bad)
 
 
 def test_walled_off_goal_is_reported():
