@@ -300,6 +300,26 @@ def test_a_narrow_passage_seen_free_is_taken_on_a_shorter_way(seen, controller, 
     _through_the_gap_or_round(_seen_gap_world(), cfg, bool(seen), short=short, far=2.8, below=0.9)
 
 
+@pytest.mark.parametrize("ratio", [0.0, 2.0])
+def test_a_near_unseen_passage_is_probed_when_a_look_saves_more_than_it_costs(ratio):
+    """``probe_ratio``: the walls of the seen-gap world known, a 0.5 m lidar: from ``a`` the gap
+    (1 m ahead) has not been seen, so by default the robot goes round (1.5 times longer);
+    with ``probe_ratio`` = 2 the saving (about 1 m) exceeds twice the way until the gap is in
+    lidar range, and the robot heads for the gap and through it. No contact either way."""
+    world = World.from_dict({
+        "name": "probe-gap", "workspace": {"center": [2.0, 1.5], "width": 4.0, "height": 3.0, "s": 0.99},
+        "obstacles": [{"center": [2.0, 2.4], "width": 0.2, "height": 1.0, "s": 0.99},
+                      {"center": [2.0, 1.2], "width": 0.2, "height": 0.6, "s": 0.99}],
+        "known_obstacles": [0, 1],
+        "regions": {"a": {"center": [1.0, 1.7], "radius": 0.15}, "b": {"center": [3.0, 1.7], "radius": 0.15}},
+        "robot": {"radius": 0.1, "start": [1.0, 1.7, 0.0], "v_max": 0.5, "omega_max": 1.5},
+        "lidar": {"range": 0.5, "fov": 6.283185, "beams": 360, "noise_std": 0.0, "rate_hz": 10},
+        "task": "F b"})
+    _through_the_gap_or_round(world, ExecutiveConfig(probe_ratio=ratio), bool(ratio), short=2.75, far=2.8, below=0.9)
+    with pytest.raises(TampError, match="probe_ratio"):
+        ExecutiveConfig(probe_ratio=-1.0)
+
+
 def test_a_passage_counts_as_seen_only_once_the_lidar_crossed_it():
     """``Executive._seen_passage``: the fallback tree through the gap after the scan of the
     start pose (the beams crossed the gap), and with a map that has seen nothing."""
