@@ -1202,8 +1202,8 @@ class Executive:
         rm = self._roads[0].rm
         if rm is None or len(tree.waypoints) < 2:
             return False
-        pts = np.array([w[:2] for w in _subdivide(tree.waypoints, 0.02)], dtype=float)
-        narrow = np.flatnonzero(~rm.safe_points(pts))
+        pts, narrow = _narrow_samples(rm, tree)
+        narrow = np.flatnonzero(narrow)
         if not len(narrow):
             return False
         along = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))))
@@ -1223,13 +1223,12 @@ class Executive:
             return False
         if len(tree.waypoints) < 2:
             return True  # no path to pass through
-        pts = np.array([w[:2] for w in _subdivide(tree.waypoints, 0.02)], dtype=float)
+        pts, narrow = _narrow_samples(rm, tree)
+        if not narrow.any():
+            return True
         seg = np.diff(pts, axis=0)
         tang = seg / np.maximum(np.hypot(seg[:, 0], seg[:, 1]), 1e-12)[:, None]
         tang = np.concatenate((tang, tang[-1:]))  # each sample: the direction of its segment
-        narrow = ~rm.safe_points(pts)
-        if not narrow.any():
-            return True
         # the passage, not just the path: the band the robot disc sweeps, up to the fallback
         # clearance on both sides, where it is not inside a known shape (no unseen part of an
         # obstacle beside the path)
@@ -1843,6 +1842,13 @@ def reachable_speed(pose, point, omega_max: float) -> float:
     a = min(abs(math.remainder(math.atan2(dy, dx) - pose[2], 2 * math.pi)), math.pi / 2)
     sa = math.sin(a)
     return omega_max * math.hypot(dx, dy) / (2 * sa) if sa > 1e-9 else math.inf
+
+
+def _narrow_samples(rm, tree):
+    """Samples of ``tree``'s path every 2 cm and which of them are closer than ``rm``'s
+    buffer to an obstacle or the boundary (not :meth:`Roadmap.safe_points`)."""
+    pts = np.array([w[:2] for w in _subdivide(tree.waypoints, 0.02)], dtype=float)
+    return pts, ~rm.safe_points(pts)
 
 
 def _subdivide(wps, max_len: float):
