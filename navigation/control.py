@@ -17,6 +17,12 @@ Choices where the paper is silent or loose, and why:
   derivative of ``theta_gamma`` along the motion ``q' = v Theta`` is
   ``v (d theta_gamma / d Upsilon)^T J_Upsilon Theta = v grad_q theta_gamma . Theta``, which is
   what we use (``grad_q theta_gamma`` exact, from :meth:`OrientedField.evaluate`).
+  ``ControllerConfig.waypoint_feedforward`` (not in the paper; 1 by default) scales this term
+  while the tracked goal is an intermediate waypoint (``beyond > 0``): a robot that passes
+  such a goal a few centimetres off its axis meets the field's fast rotation near the goal,
+  and the full feed-forward turns it hard towards the goal's heading just before the next
+  waypoint's field turns it back (an S-turn at every waypoint, docs/evaluation.md). A smaller
+  share lets the heading lag there; the path's end (``beyond = 0``) keeps the whole term.
 * **Heading gate on (24a).** Eq. 24a drives forward at ``k_v tanh(d)`` whatever the heading
   error; with a saturated ``omega`` the robot can then drive along its old heading into an
   obstacle. We multiply by ``max(0, cos(theta - theta_gamma))`` (``ControllerConfig.heading_gate``):
@@ -294,6 +300,9 @@ class ControllerConfig:
         ``r`` of the relaxed direction (see the module doc; 0, off; 1.0 is the measured setting):
         eq. 24 tracks the direction of a linearly implicit gradient step of ``r`` times the
         robot's next step instead of ``Upsilon``'s.
+    waypoint_feedforward : float
+        Share of eq. 24b's feed-forward while the tracked goal is an intermediate waypoint
+        (``beyond > 0`` in :func:`track` / :func:`track_waypoints`; module doc); 1: the paper's.
     turn_share : float
         ``s`` of the turn limit (0, off; the tracker's wall-following mode after a loop uses
         0.5): with the stand-off, within its wall band (``standoff_reach D`` of a grown
@@ -322,11 +331,13 @@ class ControllerConfig:
     brake_share: float = 0.5
     relax: float = 0.0
     turn_share: float = 0.0
+    waypoint_feedforward: float = 1.0
 
     def __post_init__(self):
         check_numbers(self, ("k_v", "k_omega", "v_max", "omega_max", "k_switch", "switch_margin"), positive=True)
         check_numbers(self, ("safety_horizon", "boundary_blend", "standoff", "standoff_push", "standoff_gate",
-                             "standoff_pull", "accel_max", "alpha_max", "relax", "turn_share"), positive=False)
+                             "standoff_pull", "accel_max", "alpha_max", "relax", "turn_share",
+                             "waypoint_feedforward"), positive=False)
         if not self.standoff_reach > 1.0:
             raise NavigationError(f"ControllerConfig.standoff_reach must be > 1, got {self.standoff_reach!r}")
         if not self.brake_share <= 1.0 or not self.brake_share > 0.0:
@@ -684,10 +695,11 @@ ESCAPE_SPEED = 0.02  #: speed (m/s) of that creep
 
 def _command(theta: float, tg: float, grad: np.ndarray, speed: float, clearance: float,
              cfg: ControllerConfig, approach: float = math.inf, previous=None, away: float | None = None,
-             turn: float = 0.0) -> Command:
+             turn: float = 0.0, feedforward: float = 1.0) -> Command:
     """Eq. 24 on the direction ``tg`` (gradient ``grad``): heading gate, saturation, safety
-    limit and rate limit applied to ``v`` before it enters the feed-forward term, then
-    ``omega`` and its rate limit (``previous = (v, omega, dt)``, see :func:`track`)."""
+    limit and rate limit applied to ``v`` before it enters the feed-forward term (times
+    ``feedforward``), then ``omega`` and its rate limit (``previous = (v, omega, dt)``, see
+    :func:`track`)."""
     if away is not None and clearance < ESCAPE_BELOW and math.cos(wrap_angle(tg - away)) < math.sqrt(0.5):
         # within the escape band a direction changed by the stand-off (or the push-forward
         # blend) may run along the boundary, where the isotropic safety limit allows no speed:
@@ -722,7 +734,7 @@ def _command(theta: float, tg: float, grad: np.ndarray, speed: float, clearance:
         # override while the clearance shrinks no faster than the robot moves, see safe_speed)
         # or the escape creep
         v = max(0.0, min(max(v, pv - dv), pv + dv, max(limit, escape)))
-    omega = -cfg.k_omega * err + v * ff
+    omega = -cfg.k_omega * err + feedforward * v * ff
     ws = min(max(omega, -cfg.omega_max), cfg.omega_max)
     if prev is not None and cfg.alpha_max > 0:
         _, pw, dt = prev
@@ -804,7 +816,8 @@ def track(pose, field: OrientedField, config: ControllerConfig = ControllerConfi
     room = _clearance(q, (field,), config)
     tg, grad, speed, away = _direction(q, field, config, band, beyond, room)
     return _command(theta, tg, grad, speed, room, config,
-                    min(_approach_limit(theta, (band,), config), v_cap), previous, away, _turn_share((band,), config))
+                    min(_approach_limit(theta, (band,), config), v_cap), previous, away, _turn_share((band,), config),
+                    _feedforward(beyond, config))
 
 
 def track_point(pose, point, field: OrientedField, config: ControllerConfig = ControllerConfig(),
@@ -870,6 +883,12 @@ def _beyond(beyond) -> float:
     return _non_negative(beyond, "beyond must be a finite path length >= 0 (m)", finite=True)
 
 
+def _feedforward(beyond: float, cfg: ControllerConfig) -> float:
+    """Share of eq. 24b's feed-forward: ``waypoint_feedforward`` towards an intermediate
+    waypoint (``beyond > 0``), else 1."""
+    return cfg.waypoint_feedforward if beyond > 0.0 else 1.0
+
+
 def switch_weight(distance: float, config: ControllerConfig = ControllerConfig()) -> float:
     """``eta(gamma_n)`` of eq. 25 (normalised form, see the module doc)."""
     return _switch(float(distance), config)[0]
@@ -901,4 +920,5 @@ def track_waypoints(pose, current: OrientedField, following: OrientedField | Non
     room = _clearance(q, (current, following), config)
     tg, grad, speed, away = _blend(q, current, following, config, bands, beyond, room)
     return _command(theta, tg, grad, speed, room, config,
-                    min(_approach_limit(theta, bands, config), v_cap), previous, away, _turn_share(bands, config))
+                    min(_approach_limit(theta, bands, config), v_cap), previous, away, _turn_share(bands, config),
+                    _feedforward(beyond, config))

@@ -661,6 +661,42 @@ def test_beyond_sets_the_speed_by_the_path_still_to_go():
     assert Tracker(cfg, crawl=None).command(0.0, pose, field, beyond=1.0) == far
 
 
+def test_waypoint_feedforward_scales_eq_24b_towards_an_intermediate_waypoint_only():
+    """``waypoint_feedforward = s``: with ``beyond > 0`` (an intermediate waypoint) eq. 24b's
+    feed-forward ``v grad theta_gamma . Theta`` enters ``omega`` times ``s`` (``omega`` linear
+    in ``s``, ``v`` and the direction unchanged); at the path's end (``beyond = 0``) and by
+    default the whole term; in eq. 25's blend as well; a bad share is refused."""
+    world, field = _office_field(goal=(3.0, 2.0), heading=0.0)
+    _, following = _office_field(goal=(3.0, 2.5), heading=math.pi / 2)
+    base = ControllerConfig.from_robot(world.robot, safety_horizon=0.0, relax=0.0, **UNLIMITED)
+    big = replace(base, omega_max=100.0)  # no saturation: omega exactly linear in the share
+    rng = np.random.default_rng(3)
+    checked = 0
+    for _ in range(40):
+        q = np.array([3.0, 2.0]) + rng.uniform(-0.6, 0.6, 2)
+        if np.hypot(*(q - (3.0, 2.0))) < 0.05:
+            continue
+        pose = (float(q[0]), float(q[1]), float(rng.uniform(-math.pi, math.pi)))
+        for fol in (None, following):
+            cmds = {k: track_waypoints(pose, field, fol, replace(big, waypoint_feedforward=k), beyond=1.0)
+                    for k in (0.0, 0.5, 1.0)}
+            if cmds[1.0].v <= 0.0 or max(abs(c.omega) for c in cmds.values()) >= big.omega_max:
+                continue  # facing away (no feed-forward at all), or saturated
+            assert cmds[0.5].v == cmds[1.0].v and cmds[0.5].theta_gamma == cmds[1.0].theta_gamma
+            assert cmds[0.5].omega == pytest.approx(0.5 * (cmds[0.0].omega + cmds[1.0].omega), rel=1e-9, abs=1e-12)
+            assert cmds[1.0] == track_waypoints(pose, field, fol, big, beyond=1.0)  # 1: the default
+            end = track_waypoints(pose, field, fol, replace(big, waypoint_feedforward=0.0), beyond=0.0)
+            assert end == track_waypoints(pose, field, fol, big, beyond=0.0)  # the path's end: whole term
+            checked += 1
+    assert checked > 20
+    half = replace(base, waypoint_feedforward=0.5)
+    assert Tracker(half, crawl=None).command(0.0, (3.3, 2.1, 2.0), field, beyond=1.0) == track(
+        (3.3, 2.1, 2.0), field, half, beyond=1.0)
+    for bad in (-0.5, math.nan):
+        with pytest.raises(NavigationError, match="waypoint_feedforward"):
+            ControllerConfig(waypoint_feedforward=bad)
+
+
 @pytest.mark.parametrize("previous", [None, (0.0, 0.0, 0.1)], ids=["pure", "rate-limited from rest"])
 def test_a_robot_on_or_inside_a_grown_boundary_creeps_out_only_facing_away(previous):
     """Clearance 0 (inside obstacle 0 of ``simple`` grown by the robot radius, 5 cm from the
