@@ -440,6 +440,20 @@ class Tracker:
         self._sent = (t, cmd.v, cmd.omega)
         return cmd
 
+    def rescue(self, t: float, pose, current: OrientedField) -> bool:
+        """Plan a route from ``pose`` to ``current``'s goal pose now, for a caller whose own
+        watch says the field fails (the executive's progress watchdog); it is pursued by
+        :meth:`command` as one the guard asked for. False without a route planner or when it
+        finds none."""
+        if self._route_fn is None:
+            return False
+        q, th = _pose(pose)
+        if current is not self._target:
+            g = self.guard
+            self._target, self._failures = current, g.loops + g.engagements // g.config.route_crawls
+        self._plan(float(t), q, th, current)
+        return bool(self._route)
+
     @property
     def route(self) -> tuple:
         """The waypoints ``(x, y, theta)`` of the route tracked now, from the current one to the

@@ -108,6 +108,20 @@ Choices where the paper is vague, and why
   robot reached the left face of the wall hanging from the top boundary at x = 5.7, 7 cm
   above its grown bottom corner, with the waypoint 7 cm below it; it crept 0.3 m up the face
   and back for 25 s; with the watchdog it re-planned at 40.7 s and was in ``d1`` at 47.7 s.
+  *Route rescue* (``route_rescue``, default on since the thirty-first session): the first
+  time the watchdog fires on a waypoint, the tracker instead pursues a harmonic tree from the
+  robot to that waypoint along its straight segments (``navigation.Tracker.rescue``,
+  docs/control.md "Route rescue"; the tree on the executive's roadmaps,
+  :meth:`Executive._rescue_route`), and the crawl guard's own loops and crawls ask for such a
+  tree too; the next firing on the same waypoint re-plans. A re-planned leg is tracked with
+  fields again, and they can fail the same way: on ``office`` from its sixteenth jittered start
+  the field of a waypoint 0.19 m above a wall's grown top, heading along it, pointed down
+  into the wall east of the waypoint; the motion guard held the robot at a return 1 cm outside
+  the wall's estimate, and for 200 s the watchdog's re-plans sent it back (278 s for the
+  mission; 56 s with the rescue). Over 48 jittered starts of ``office``: mission time 3550 ->
+  3211 s, the longest 278 -> 111 s, 888 -> 848 m; ``cluttered20``, ``random1`` and
+  ``random8`` within 2 % either way; the benchmark's 315 and 65 missions: the same nominal
+  routes, jittered within 1.25 x 233 and 48 as before, 0.1-0.2 % longer.
 * **Commitment.** A re-plan between regions (a map change hit the leg or a tree) discounts
   the transition from the robot to the region it is heading for by ``commit_discount``
   (20 %), its straight-line lower bound as well as its tree cost (so the lazy evaluation stays
@@ -404,6 +418,11 @@ class ExecutiveConfig:
         routes (``cluttered20`` 10.50 -> 10.43 m) and completed all 252 jittered missions
         (251 without: ``random44`` from start 1 circled for 290 s at a gap next to a chain),
         237 against 238 within 1.25 x their tour.
+    route_rescue : bool
+        With ``crawl_guard``: the progress watchdog's first firing on a waypoint, and the
+        guard's loops and crawl engagements, make the tracker pursue a harmonic tree from the
+        robot to the tracked waypoint along its straight segments (module doc, "No progress";
+        ``navigation.Tracker``'s route rescue, docs/control.md "Route rescue"). Default on.
     speed_to_leg_end : bool
         Eq. 24a's speed factor from the path length still to go along the leg (through the
         remaining waypoints to the region) instead of the distance to the current waypoint
@@ -455,6 +474,7 @@ class ExecutiveConfig:
     guard_margin: float | None = 0.005
     guard_horizon: float = 0.1
     crawl_guard: CrawlConfig | None = CrawlConfig()
+    route_rescue: bool = True
     speed_to_leg_end: bool = True
     controller: ControllerConfig | None = ControllerConfig(push_forward=True)
     max_segment: float = 0.4
@@ -482,7 +502,7 @@ class ExecutiveConfig:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:
                 raise TampError(f"ExecutiveConfig.{name} must be a positive int, got {v!r}")
-        for name in ("refit_weights", "shortcut_legs", "turn_cap", "turn_cap_rate_limited"):
+        for name in ("refit_weights", "shortcut_legs", "turn_cap", "turn_cap_rate_limited", "route_rescue"):
             if not isinstance(getattr(self, name), bool):
                 raise TampError(f"ExecutiveConfig.{name} must be a bool, got {getattr(self, name)!r}")
         try:
@@ -675,7 +695,10 @@ class Executive:
         self.control = (ControllerConfig.from_robot(world.robot) if cfg.controller is None else
                         replace(cfg.controller, v_max=float(world.robot.v_max), omega_max=float(world.robot.omega_max)))
         # eq. 24-25, with the crawl guard when configured (navigation.tracker)
-        self._tracker = Tracker(self.control, cfg.crawl_guard)
+        self._tracker = Tracker(self.control, cfg.crawl_guard, route=self._rescue_route if cfg.route_rescue else None,
+                                route_tolerance=cfg.waypoint_tolerance)
+        self.rescues = 0  # routes the tracker asked for (ExecutiveConfig.route_rescue)
+        self._rescued = None  # (leg id, waypoint index) the watchdog last answered with a route
         self.cspace_workspace, _ = configuration_space(world.workspace, (), r)
         self.messages: list[str] = []
         self.message = ""
@@ -1191,6 +1214,19 @@ class Executive:
             return None
         return self._leg_road[1]
 
+    def _rescue_route(self, pose, goal):
+        """The tracker's route rescue (``route_rescue``): the waypoints of a harmonic tree from
+        ``pose`` to ``goal`` (the tracked waypoint) on the first of the executive's roadmaps
+        that has one, or ``None``."""
+        self.rescues += 1
+        for roads in self._roads:
+            try:
+                tree = plan_tree(roads.current(), tuple(pose), tuple(goal), self.weights, self.config.n_headings)
+            except NoTreePathError:
+                continue
+            return [tuple(float(x) for x in w) for w in tree.waypoints]
+        return None
+
     def _worth_probing(self, tree, best) -> bool:
         """A leg from the robot may take the shorter fallback ``tree`` whose narrow passage has
         not been seen (``probe_ratio`` > 0): when its saving on ``best`` exceeds ``probe_ratio``
@@ -1598,6 +1634,15 @@ class Executive:
             return
         if self.time - prog[3] >= cfg.stuck_time and d > cfg.waypoint_tolerance:
             self._progress = (self.leg, self.wp, d, self.time)
+            key = (id(self.leg), self.wp)
+            if cfg.route_rescue and self._rescued != key:
+                # first time on this waypoint: follow a harmonic tree to it along its segments
+                cur = self._field(self.leg[self.wp])
+                if cur is not None and self._tracker.rescue(self.time, self._pose, cur):
+                    self._rescued = key
+                    self._note(f"no progress towards the waypoint {d:.2f} m away for {cfg.stuck_time:g} s: "
+                               "following a harmonic tree to it")
+                    return
             self._need_plan = True
             self._note(f"no progress towards the waypoint {d:.2f} m away for {cfg.stuck_time:g} s: "
                        "re-planning from here")

@@ -1162,9 +1162,10 @@ def test_no_progress_towards_a_waypoint_re_plans_from_where_the_robot_is(stuck_t
     """Progress watchdog (``stuck_time`` / ``stuck_progress``): a robot that does not come
     closer to its waypoint (here it is held in place while commanded forward, so neither the
     stall guard nor arrival fires) is re-planned from where it is once ``stuck_time`` seconds
-    have passed, and again after each further ``stuck_time``; ``stuck_time = 0`` never."""
+    have passed, and again after each further ``stuck_time``; ``stuck_time = 0`` never
+    (``route_rescue`` off: with it the first firing follows a tree instead, test below)."""
     world = _open_two_regions("F a")
-    ex = Executive(world, known=True, config=ExecutiveConfig(stuck_time=stuck_time))
+    ex = Executive(world, known=True, config=ExecutiveConfig(stuck_time=stuck_time, route_rescue=False))
     x, y, _ = world.robot.start
     pose = (x, y, math.pi)  # facing region a: eq. 24 drives forward
     fired = []
@@ -1183,6 +1184,33 @@ def test_no_progress_towards_a_waypoint_re_plans_from_where_the_robot_is(stuck_t
         assert len(notes) == len(fired) == int(10.0 // (stuck_time + 0.1))
         assert fired[0] == pytest.approx(stuck_time + 0.1, abs=0.11)  # noted on one tick, re-planned on the next
     assert ex.state is ExecutiveState.EXECUTING
+
+
+def test_with_route_rescue_the_watchdog_first_follows_a_tree_to_the_waypoint_then_re_plans():
+    """``route_rescue``: the first time the watchdog fires on a waypoint, the tracker gets a
+    harmonic tree from the robot to that waypoint (``Tracker.rescue``, pursued along its
+    segments) instead of a re-plan; if the robot still makes no progress, the next firing
+    re-plans as without the option. Held in place as in the test above (the crawl guard,
+    seeing the robot crawl, may ask for routes of its own too)."""
+    world = _open_two_regions("F a")
+    ex = Executive(world, known=True, config=ExecutiveConfig(stuck_time=3.0, route_rescue=True))
+    x, y, _ = world.robot.start
+    pose = (x, y, math.pi)
+    events = []
+    for k in range(80):
+        before, routes = len(ex.replan_times), ex._tracker.routes
+        res = ex.tick(pose, now=0.1 * k)
+        assert math.isfinite(res.v) and math.isfinite(res.omega)
+        if ex._tracker.routes > routes:
+            events.append("route")
+        if len(ex.replan_times) > before and k > 0:
+            events.append("re-plan")
+    notes = [m for m in ex.messages if "no progress" in m]
+    assert events[0] == "route" and "re-plan" in events, events  # (the crawl guard may add routes)
+    assert "following a harmonic tree" in notes[0] and "re-planning" in notes[1]
+    assert ex.rescues >= 1 and ex.state is ExecutiveState.EXECUTING
+    with pytest.raises(TampError, match="route_rescue"):
+        ExecutiveConfig(route_rescue=1)
 
 
 def test_progress_watchdog_settings_are_validated():

@@ -213,6 +213,31 @@ def test_the_goal_of_a_route_is_pursued_until_the_robot_is_near_it(reach):
         assert cmd == want and t.route == ((6.4, 3.3, 0.0),)
 
 
+def test_rescue_plans_a_route_now_that_is_pursued_like_the_guards():
+    """``Tracker.rescue``: a caller's own failure detector (the executive's progress watchdog)
+    gets a route from the pose to the field's goal at once, pursued by ``command`` as a route
+    the guard asked for (bearing of its first inner waypoint); a new goal drops it; without a
+    planner, or when the planner finds none, nothing changes and it says so."""
+    world = shared_world("office")
+    cfg = ControllerConfig.from_robot(world.robot, **UNLIMITED)
+    field = _field(world, (6.4, 3.3), 0.0)
+    pose = (5.0, 2.0, 0.0)
+    assert not Tracker(cfg).rescue(0.0, pose, field)  # no planner
+    none = _Scripted(None)
+    t = Tracker(cfg, route=none)
+    assert not t.rescue(0.0, pose, field) and t.route_misses == 1 and not t.route
+    planner = _Scripted([(5.5, 2.0, 0.0), (9.0, 9.0, 9.0)])
+    t = Tracker(cfg, route=planner)
+    assert t.rescue(0.0, pose, field) and t.routes == 1
+    assert planner.calls == [(pose, (6.4, 3.3, 0.0))]
+    assert t.route == ((5.5, 2.0, 0.0), (6.4, 3.3, 0.0))
+    cmd = t.command(DT, pose, field)
+    assert cmd == navigation.track_point(pose, (5.5, 2.0), field, cfg, beyond=float(np.hypot(0.9, 1.3)))
+    assert t.mode is Mode.PLAIN
+    other = _field(world, (1.0, 1.0), 0.0)
+    assert t.command(2 * DT, pose, other) == navigation.track_waypoints(pose, other, None, cfg) and not t.route
+
+
 def test_a_pursued_waypoint_is_passed_near_the_segment_to_the_next_one():
     """``Tracker._passable``: a pursued waypoint within ``route_tolerance`` counts as passed once
     the robot is within ``PASS_CLOSE`` (3 cm) of the route's segment from it to the next one
