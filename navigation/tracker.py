@@ -66,8 +66,10 @@ guard keeps watching (its goal is the tracked waypoint), so a route that fails t
 by the next one; a new goal from the caller drops the route. A route is a plan from the pose it
 was planned at: when the robot strays more than ``route_deviation`` (0.3 m) from the segment it
 follows (from that pose, or the last waypoint passed, to the next waypoint), the tracker plans
-a new route from where it is, at most once per guard ``window`` (3 s). Measured in
-docs/control.md, "Route rescue".
+a new route from where it is, at most once per guard ``window`` (3 s). A caller with a
+failure detector of its own asks for a route at once with :meth:`Tracker.rescue` (the
+executive's progress watchdog, ``tamp.executive``). Measured in docs/control.md, "Route
+rescue".
 
 Not in the paper: paper 001 tracks the field with eq. 24 alone. This is a supervisor around it
 for the conditioning problem of the transformation (issue 2, docs/navigation.md "Conditioning
