@@ -347,6 +347,9 @@ def chatter_sources(poses, waypoints, replanned, dt: float) -> dict:
 
 
 _CLASSES = {"OHPF": OHPFExecutive, "NF": NFExecutive, "RRT*": RRTStarExecutive}
+#: the executive configuration of the baselines: the defaults without the route rescue, which
+#: pursues harmonic trees (HT's execution layer; docs/executive.md)
+BASELINE_CONFIG = ExecutiveConfig(route_rescue=False)
 
 
 def run_method(method: str, world, task=None, *, seed: int = 0, max_time: float = 300.0) -> dict:
@@ -354,7 +357,9 @@ def run_method(method: str, world, task=None, *, seed: int = 0, max_time: float 
     if method == "HT":
         r = run_mission(world, task, seed=seed, max_time=max_time, record=True)
     elif method in _CLASSES:
-        r = run_mission(world, task, seed=seed, max_time=max_time, record=True, executive_cls=_CLASSES[method])
+        # the route rescue pursues harmonic trees' segments: part of HT's execution, not the baselines'
+        r = run_mission(world, task, seed=seed, max_time=max_time, record=True, executive_cls=_CLASSES[method],
+                        config=BASELINE_CONFIG)
     else:
         raise ValueError(f"unknown method {method!r}, must be one of {', '.join(m for m in METHODS if m != 'oracle')}")
     dt = 1.0 / world.lidar.rate_hz
