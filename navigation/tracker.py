@@ -450,9 +450,8 @@ class Tracker:
         if self._route_fn is None:
             return False
         q, th = _pose(pose)
-        if current is not self._target:
-            g = self.guard
-            self._target, self._failures = current, g.loops + g.engagements // g.config.route_crawls
+        if current is not self._target:  # a new goal (the route and index are reset by _plan)
+            self._target, self._failures = current, self._guard_failures()
         self._plan(float(t), q, th, current)
         return bool(self._route)
 
@@ -466,13 +465,18 @@ class Tracker:
         """Whether a route waypoint before the goal pose is tracked (not the caller's field)."""
         return self._route_i < len(self._route) - 1
 
+    def _guard_failures(self) -> int:
+        """The guard's failures a route answers: its loops and every ``route_crawls``-th crawl
+        engagement."""
+        g = self.guard
+        return g.loops + g.engagements // g.config.route_crawls
+
     def _routed(self, t: float, q: np.ndarray, th: float, current: OrientedField, following, beyond: float):
         """``(current, following, beyond, point)`` to track: the caller's (``point`` None), or
         along the route: with ``CrawlConfig.route_pursuit`` the caller's field (for the safety
         limit), ``None``, the path length after the waypoint and the waypoint's position;
         otherwise the waypoint's field, the next one's and the path length after it."""
-        g = self.guard
-        failures = g.loops + g.engagements // g.config.route_crawls
+        failures = self._guard_failures()
         if current is not self._target:  # a new goal: forget the route and the failures so far
             self._target, self._route, self._route_i, self._failures = current, (), 0, failures
         if failures > self._failures:
