@@ -55,7 +55,12 @@ class Brain(Protocol):
              points: PointsMsg | None = None, now: float) -> BrainTick:
         """One control period. ``pose`` is the latest pose; ``scan`` (new since the last tick,
         or ``None``) was taken at ``scan_pose`` (the received pose nearest its stamp, may be
-        ``pose``); ``points`` likewise; ``now`` is the robot clock (latest pose stamp)."""
+        ``pose``); ``points`` likewise; ``now`` is the robot clock (latest pose stamp).
+
+        A brain may also have ``observe(pose, *, scan=None, points=None, now) -> bool``: the
+        node then integrates the further sensor messages of a period with it (the map changed:
+        True) before the tick; without it, it ticks once per message and sends the last
+        tick's command."""
 
     def request_task(self, request: TaskRequest) -> dict:
         """Apply a mission change; return the plan summary (``status.plan`` shape).
@@ -106,9 +111,9 @@ class ExecutiveBrain:
 
     Notes
     -----
-    * A scan is integrated with the pose of its stamp (``scan_pose``); when that is older than
-      the latest pose, the tick that integrates it also computes the command from it (at most
-      one pose period late). The executive pairs a scan with one pose per tick.
+    * A scan or points message is integrated at the pose of its stamp (``scan_pose``) and the
+      command is computed for the latest pose (``Executive.tick``'s ``sensor_pose``);
+      :meth:`observe` integrates a further message without a command.
     * ``regions`` in a task request are added or moved with the mission change
       (:meth:`tamp.executive.Executive.request`, rules of ``Executive.set_regions``): a region
       that breaks a rule is refused with ``invalid_request`` whose message starts with
@@ -136,11 +141,15 @@ class ExecutiveBrain:
         return self._ex
 
     def tick(self, pose, *, scan=None, scan_pose=None, points=None, now):
-        ex = self._ex
-        use = scan_pose if (scan is not None and scan_pose is not None) else pose
-        r = ex.tick(_pose_dict(use), scan=scan.message if scan is not None else None,
-                    points=points.points if points is not None else None, now=now)
+        sensor = None if scan_pose is None or (scan is None and points is None) else _pose_dict(scan_pose)
+        r = self._ex.tick(_pose_dict(pose), scan=scan.message if scan is not None else None,
+                          points=points.points if points is not None else None, now=now, sensor_pose=sensor)
         return BrainTick(r.v, r.omega, dict(r.status), r.compute, r.map_changed, r.replanned)
+
+    def observe(self, pose, *, scan=None, points=None, now) -> bool:
+        """Integrate one more sensor message taken at ``pose`` (``Executive.observe``)."""
+        return self._ex.observe(_pose_dict(pose), scan=scan.message if scan is not None else None,
+                                points=points.points if points is not None else None, now=now)
 
     def request_task(self, request: TaskRequest) -> dict:
         try:

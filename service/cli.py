@@ -285,7 +285,7 @@ def _cmd_demo(a) -> int:
            "min_clearance": m.get("min_clearance"), "replans": summary["replans"],
            "planning_time": summary["planning_time"], "max_replan_time": summary["max_replan_time"],
            "obstacles": summary["obstacles"], "ticks": node.stats.ticks, "overruns": node.stats.overruns,
-           "refreshed": node.stats.refreshed,
+           "refreshed": node.stats.refreshed, "sensor_held": node.stats.held, "sensor_unpaired": node.stats.unpaired,
            "tick_p50_ms": float(np.percentile(ticks, 50)) if len(ticks) else None,
            "tick_p95_ms": float(np.percentile(ticks, 95)) if len(ticks) else None,
            "warnings": node.stats.warnings, "record": a.record}
@@ -314,7 +314,8 @@ def _cmd_demo(a) -> int:
               f"max re-plan {out['max_replan_time'] * 1e3:.1f} ms\n"
               f"  control loop   {out['ticks']} ticks, p50 {f(out['tick_p50_ms'], '.1f')} ms, "
               f"p95 {f(out['tick_p95_ms'], '.1f')} ms, {out['overruns']} overruns, "
-              f"{out['refreshed']} commands refreshed, {out['warnings']} input warnings"
+              f"{out['refreshed']} commands refreshed, {out['sensor_held']} scans waited for their pose, "
+              f"{out['warnings']} input warnings"
               + (f"\n  recording      {out['record']}" if out["record"] else "")
               + (f"\n  rerun logging  p50 {f(out['telemetry']['tick_p50_ms'], '.2f')} ms, "
                  f"p95 {f(out['telemetry']['tick_p95_ms'], '.2f')} ms per tick; "

@@ -680,7 +680,9 @@ class Executive:
     ---
     ``result = ex.tick(pose, scan=None, points=None, now=None)`` once per control period;
     ``result.v, result.omega`` is the command, ``result.status`` the FORMATS.md ``status``
-    payload. ``ex.request(formula, mode, regions=None)`` changes the mission at run time,
+    payload (a sensor message taken at another pose than the command's: ``sensor_pose=``).
+    ``ex.observe(pose, scan=None, points=None, now=None)`` integrates a further sensor message
+    between ticks. ``ex.request(formula, mode, regions=None)`` changes the mission at run time,
     ``ex.set_regions(regions)`` adds or moves regions.
     """
 
@@ -779,6 +781,7 @@ class Executive:
         self.replans = 0
         self.visited: list[str] = []
         self.map_changes = 0
+        self._observed_change = False  # a map change by observe() that the next tick reports
         self.trees_planned = 0
         self.guard_stops = 0  #: ticks whose speed the motion guard reduced
         self._guard_noted = -math.inf
@@ -891,8 +894,12 @@ class Executive:
                 "target": self.target, "waypoint": [float(v) for v in wp] if wp is not None else None,
                 "obstacles": len(self.obstacles), "message": self.message}
 
-    def tick(self, pose, scan=None, points=None, now: float | None = None) -> TickResult:
-        """One control period: perception, updates as needed, command (see the module doc)."""
+    def tick(self, pose, scan=None, points=None, now: float | None = None, *, sensor_pose=None) -> TickResult:
+        """One control period: perception, updates as needed, command (see the module doc).
+
+        ``scan`` or ``points`` (at most one sensor message) is integrated at ``sensor_pose``
+        (the pose at its stamp, e.g. from a pose stream that runs ahead of the sensor) when
+        given, else at ``pose``; the command is computed for ``pose``."""
         t0 = time.perf_counter()
         replanned = map_changed = False
         try:
@@ -917,18 +924,8 @@ class Executive:
             except TampError as err:
                 self._note(f"event at {ev.time:g} s refused: {err}")
         # perception
-        if self.omap is not None and (scan is not None or points is not None):
-            try:
-                if scan is not None:
-                    upd = self.omap.update_scan(self._filter_known(scan, p), pose if isinstance(pose, Mapping) else p,
-                                                now=now)
-                else:
-                    upd = self.omap.update_points(points, p, now=now)
-                if upd.changed:
-                    map_changed = True
-                    self._on_map_change(upd)
-            except ScanError as err:
-                self._note(f"input dropped: {err}")
+        map_changed = self._perceive(pose if sensor_pose is None else sensor_pose, scan, points, now)
+        map_changed, self._observed_change = map_changed or self._observed_change, False
         # progress: regions entered (the trace of the mission)
         self._track_regions(p)
         if self.state is ExecutiveState.DONE:
@@ -1042,6 +1039,39 @@ class Executive:
         return self._result(0.0, 0.0, t0, False, False)
 
     # ------------------------------------------------------------------ perception
+    def observe(self, pose, scan=None, points=None, now: float | None = None) -> bool:
+        """Integrate one sensor message (``scan`` or ``points``) taken at ``pose`` without
+        computing a command: for a caller with more sensor messages than ticks (the service
+        node when a scan waited for its pose). The map, forest and trees update as in
+        :meth:`tick`; the next tick's result reports the map change. Bad input is dropped with
+        a note, as in :meth:`tick`. Returns whether the map changed."""
+        changed = self._perceive(pose, scan, points, now)
+        self._observed_change = self._observed_change or changed
+        return changed
+
+    def _perceive(self, pose, scan, points, now) -> bool:
+        """Perception step of :meth:`tick` / :meth:`observe`: the map update of a sensor
+        message at ``pose`` and, when the map changed, section 4.2's updates."""
+        if self.omap is None or (scan is None and points is None):
+            return False
+        try:
+            _, p = _pose3(pose)
+        except TampError as err:
+            self._note(f"input dropped: sensor pose: {err}")
+            return False
+        try:
+            if scan is not None:
+                upd = self.omap.update_scan(self._filter_known(scan, p), pose if isinstance(pose, Mapping) else p,
+                                            now=now)
+            else:
+                upd = self.omap.update_points(points, p, now=now)
+        except ScanError as err:
+            self._note(f"input dropped: {err}")
+            return False
+        if upd.changed:
+            self._on_map_change(upd)
+        return bool(upd.changed)
+
     def _filter_known(self, scan, p):
         """Beams whose return lies on a known obstacle become NaN (no return, no free evidence)."""
         if self._known_rows is None or not isinstance(scan, Mapping):

@@ -1219,3 +1219,37 @@ def test_progress_watchdog_settings_are_validated():
             ExecutiveConfig(**{name: -1.0})
         with pytest.raises(TampError, match=name):
             ExecutiveConfig(**{name: float("nan")})
+
+
+def test_a_scan_is_integrated_at_its_own_pose_by_tick_and_by_observe():
+    """``sensor_pose`` integrates a scan at the pose of its stamp while the command is for the
+    newer pose (perception refuses the pair otherwise); ``observe`` integrates one between
+    ticks and the next tick reports the map change. Both give the map a tick at the scan's
+    own pose gives."""
+    world = shared_world("office")
+    sim = Simulator(world, seed=0)
+    pose0, scan0 = sim.pose_message(), sim.scan_message()
+    sim.step((0.3, 0.2))
+    pose1 = sim.pose_message()
+
+    ref = Executive(world)
+    ref.tick(pose0, scan=scan0, now=pose0["stamp"])
+    assert ref.map_changes == 1 and ref.obstacles
+
+    skewed = Executive(world)
+    skewed.tick(pose1, scan=scan0, now=pose1["stamp"])  # the scan paired with the wrong pose
+    assert skewed.map_changes == 0 and any("max_stamp_skew" in m for m in skewed.messages)
+
+    ex = Executive(world)
+    res = ex.tick(pose1, scan=scan0, now=pose1["stamp"], sensor_pose=pose0)
+    assert res.map_changed and not any("input dropped" in m for m in ex.messages)
+    assert ex.obstacles == ref.obstacles
+    assert math.isfinite(res.v) and math.isfinite(res.omega)
+
+    ob = Executive(world)
+    assert ob.observe(pose0, scan=scan0, now=pose1["stamp"]) is True
+    assert ob.obstacles == ref.obstacles
+    assert ob.tick(pose1, now=pose1["stamp"]).map_changed  # reported once, by the next tick
+    assert not ob.tick(pose1, now=pose1["stamp"]).map_changed
+    assert ob.observe(pose0, scan=scan0, now=pose1["stamp"]) is False  # the same scan: nothing new
+    assert ob.observe({"x": "nan"}, scan=scan0) is False and "input dropped: sensor pose" in ob.messages[-1]

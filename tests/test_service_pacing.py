@@ -11,6 +11,7 @@ import pytest
 
 from service.brain import BrainTick
 from service.messages import encode
+from service.errors import ServiceError
 from service.node import NodeConfig, ServiceNode
 from service.sim import Simulator
 from service.sim_node import SimNode, SimNodeConfig
@@ -130,3 +131,100 @@ def test_the_simulator_node_applies_a_decoded_cmd_vel_and_drops_a_malformed_one(
     node.step()
     assert node.bad_commands == bad
     assert node.sim.command == pytest.approx(held)
+
+
+# ----------------------------------------------------------- a scan that arrives before its pose
+class _PairBrain:
+    """Records what each call integrated: ``("tick", pose stamp, sensor stamp, sensor pose
+    stamp)`` and ``("observe", ...)`` (when ``observing``)."""
+
+    def __init__(self, observing: bool):
+        self.calls = []
+        if observing:
+            self.observe = self._observe
+
+    def tick(self, pose, *, scan=None, scan_pose=None, points=None, now):
+        msg = scan if scan is not None else points
+        self.calls.append(("tick", pose.stamp, None if msg is None else msg.stamp,
+                           None if scan_pose is None else scan_pose.stamp))
+        return BrainTick(v=0.0, omega=0.0, status={"state": "executing", "task": None, "plan": None, "target": None,
+                                                   "waypoint": None, "obstacles": 0, "message": ""})
+
+    def _observe(self, pose, *, scan=None, points=None, now):
+        self.calls.append(("observe", now, (scan if scan is not None else points).stamp, pose.stamp))
+        return False
+
+    def status(self):
+        return {}
+
+    def obstacles(self):
+        return []
+
+
+def _pair_node(observing: bool = True, pair_wait: float = 0.1):
+    node = ServiceNode(_PairBrain(observing), NodeConfig(pair_wait=pair_wait))
+    node._publish_cmd = lambda v, w, **extra: None
+    node._publish_status = lambda st, force=False: None
+    node._publish_obstacles = lambda: None
+    node._t0 = time.monotonic()
+    sim = Simulator(shared_world("simple"), seed=0)
+
+    def put(key):
+        node._inbox[key].append((encode(sim.pose_message() if key == "pose" else sim.scan_message()), time.monotonic()))
+    return node, sim, put
+
+
+def test_a_scan_newer_than_every_pose_waits_for_its_pose_and_a_pose_wakes_the_loop():
+    node, sim, put = _pair_node()
+    put("pose"), put("scan")
+    node.step()
+    sim.step((0.3, 0.0))
+    put("scan")  # its pose is late
+    node.step()
+    assert node.stats.held == 1 and node._await_pose
+    node._wake.clear()
+    node._enqueue("pose")(_sample(encode(sim.pose_message())))  # the pose arrives: the loop wakes
+    assert node._wake.is_set()
+    node.step()
+    t = sim.time
+    assert node.brain.calls == [("tick", 0.0, 0.0, 0.0), ("tick", 0.0, None, None), ("tick", t, t, t)]
+    assert not node._await_pose and node.stats.unpaired == 0
+
+
+@pytest.mark.parametrize("observing", [True, False])
+def test_every_ready_sensor_message_is_integrated_oldest_first_none_superseded(observing):
+    """A held scan and a newer one ready in the same period: the older through ``observe`` (or
+    a tick of its own without it), the newer by the tick, each at the pose of its stamp."""
+    node, sim, put = _pair_node(observing)
+    put("pose"), put("scan")
+    node.step()
+    sim.step((0.3, 0.0))
+    put("scan")
+    node.step()  # held
+    t1 = sim.time
+    put("pose")
+    sim.step((0.3, 0.0))
+    put("pose"), put("scan")
+    node.step()
+    t2 = sim.time
+    older = ("observe", t2, t1, t1) if observing else ("tick", t2, t1, t1)
+    assert node.brain.calls[2:] == [older, ("tick", t2, t2, t2)]
+
+
+def test_a_scan_whose_pose_does_not_come_is_integrated_at_the_nearest_pose_after_pair_wait():
+    node, sim, put = _pair_node(pair_wait=0.05)
+    put("pose")
+    sim.step((0.3, 0.0))
+    put("scan")
+    node.step()
+    assert node.brain.calls == [("tick", 0.0, None, None)] and node.stats.held == 1
+    time.sleep(0.06)
+    node.step()
+    assert node.brain.calls[1] == ("tick", 0.0, sim.time, 0.0) and node.stats.unpaired == 1
+
+
+def test_pair_wait_is_validated():
+    with pytest.raises(ServiceError, match="pair_wait"):
+        NodeConfig(pair_wait=-1.0)
+    with pytest.raises(ServiceError, match="pair_wait"):
+        NodeConfig(pair_wait=float("nan"))
