@@ -167,6 +167,15 @@ Choices where the paper is vague, and why
   on the benchmark's 13 (``cluttered20`` 1.27 x nominal: a passage rightly probed, then
   closed for a moment by an estimate), and 4.4 % more mission time over both (the robot is
   slow in narrow passages); like ``detour_ratio`` 1.5 (twenty-ninth session), off by default.
+* **Narrow passages** (not in the paper). The roadmaps' vertices sit ``offset`` (5 cm)
+  outside the grown obstacles, so none may see through a passage only centimetres wide at
+  ``fallback_buffer``: on ``random103`` (``python -m benchmarks.executive --sweep``) the
+  estimates left a pocket round ``r1`` whose way out was such a passage, every roadmap had
+  ``r1`` walled off, and the robot stopped, blocked, for good (nothing changes the map of a
+  robot that stands still). When no roadmap connects a transition, the executive adds the
+  passages' vertices (``Roadmap.gap_candidates``: midpoints between facing boundaries less
+  than 0.15 m apart) to the fallback roadmap, once per roadmap version, and tries it again
+  (``gap_searches`` counts them); a region is declared unreachable only if that fails too.
 * **Centred waypoints** (not in the paper). A tree through a passage narrower than the
   buffer allows (the fallback roadmap) turns at vertices ``fallback_buffer`` off the grown
   obstacles, i.e. 3 cm from the forest's boundary, where the navigation transformation is
@@ -571,6 +580,23 @@ class _Roads:
         self.superseded = 0  # every replaced or removed shape still in the roadmap
         self.rebuilds = 0
         self.removals = 0
+        self.gapped: Roadmap | None = None  # the roadmap version that got its passages' vertices
+
+    def add_gaps(self) -> bool:
+        """Add the vertices of the narrow passages (``Roadmap.gap_candidates``) to the current
+        roadmap, once per roadmap version, none within 1 mm of a vertex it has (a roadmap
+        revised since its passages were added keeps them). Whether vertices were added."""
+        rm = self.current()
+        if self.gapped is rm:
+            return False
+        cand = rm.gap_candidates()
+        if len(cand) and len(rm.points):
+            d = np.linalg.norm(cand[:, None, :] - rm.points[None, :, :], axis=2).min(axis=1)
+            cand = cand[d > 1e-3]
+        if len(cand):
+            self.rm = rm.with_obstacles((), extra=cand)
+        self.gapped = self.rm
+        return len(self.rm.points) > len(rm.points)
 
     def current(self) -> Roadmap:
         if self.rm is not None:
@@ -782,6 +808,7 @@ class Executive:
         self.visited: list[str] = []
         self.map_changes = 0
         self._observed_change = False  # a map change by observe() that the next tick reports
+        self.gap_searches = 0  #: transitions no roadmap connected, so the fallback roadmap's passages were searched
         self.trees_planned = 0
         self.guard_stops = 0  #: ticks whose speed the motion guard reduced
         self._guard_noted = -math.inf
@@ -1234,6 +1261,17 @@ class Executive:
                     best, best_k = tree, k
                 elif turned_down is not None:
                     turned_down.append(tree)
+        if best is None and isinstance(err, NoTreePathError) and err.reason is TreeFailure.DISCONNECTED:
+            # no roadmap connects them: the vertices may not see through a narrow passage
+            # (module doc, "Narrow passages"); add its waists to the fallback roadmap, once
+            roads = self._roads[-1]
+            self.gap_searches += 1
+            if roads.add_gaps():
+                try:
+                    self.trees_planned += 1
+                    return plan_tree(roads.current(), start, goal, self.weights, self.config.n_headings), len(self._roads) - 1
+                except NoTreePathError as e:
+                    err = e
         return (best, best_k) if best is not None else (err, None)
 
     def _leg_keep(self, region: str) -> int | None:

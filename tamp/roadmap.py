@@ -42,6 +42,18 @@ edges can leave it). A vertex is kept when it is outside every ``G_k`` and insid
 Optional extra candidates (potential-biased regeneration, :func:`descent_candidates`) are kept
 under the same rule.
 
+Narrow passages
+---------------
+The boundary vertices sit ``offset`` from their ``G_j``; in a passage narrower than that
+between two ``G_j`` (or a ``G_j`` and ``W'``) they fall inside the other one, and no vertex
+may see through it although the free space is connected there (seen on a random world: the
+fallback roadmap had the region ``r1`` in a component of its own while a 1 cm grid of the same
+free space joined it to the robot, and the executive stopped, blocked, for good).
+:meth:`Roadmap.gap_candidates` returns points along the middle of every passage narrower
+than ``max_gap`` (midpoints between the facing boundaries), out to where it widens and the
+boundary vertices see them; ``with_obstacles(extra=...)`` adds the safe ones. The executive
+does so when no roadmap has a path (docs/harmonic_trees.md).
+
 Symbols
 -------
 =========================  ===========================================================
@@ -367,6 +379,49 @@ class Roadmap:
         b = np.asarray(b, dtype=float).reshape(-1, 2)
         ok = (self.free_workspace.beta(a) < 0) & (self.free_workspace.beta(b) < 0)
         return ok & segments_clear(self.P, a, b)
+
+    def gap_candidates(self, max_gap: float = 0.15, samples: int = 96, spacing: float = 0.02) -> np.ndarray:
+        """Candidate vertices along the narrow passages of the roadmap's free space (``extra``
+        for :meth:`with_obstacles`; module doc, "Narrow passages"): for every boundary sample
+        of a buffered obstacle ``G_j`` (``samples`` per obstacle) less than ``max_gap`` from
+        another ``G_k`` or from the boundary of the shrunk workspace ``W'``, the midpoint
+        between it and the nearest point there (the nearest of ``G_k``'s samples; the foot of
+        ``W'``'s exact distance along its normal). The midpoints run along the passage and out
+        of its mouths, where the boundary vertices see them. One candidate per ``spacing``
+        cell, ``(K, 2)``, not checked for safety (:meth:`with_obstacles` keeps the safe ones)."""
+        if not (max_gap > 0 and spacing > 0 and samples >= 3):
+            raise TampError(f"gap_candidates: need max_gap > 0, spacing > 0, samples >= 3 "
+                            f"(got {max_gap}, {spacing}, {samples})")
+        G, ws = self.buffered, self.free_workspace
+        if not G:
+            return np.zeros((0, 2))
+        B = np.stack([g.boundary_points(samples) for g in G])  # (m, S, 2)
+        centre = B.mean(axis=1)
+        reach = np.linalg.norm(B - centre[:, None, :], axis=2).max(axis=1)
+        mids = [np.zeros((0, 2))]
+        # obstacle - obstacle (bounding circles within max_gap): each sample and its nearest
+        j, k = np.nonzero(np.linalg.norm(centre[:, None] - centre[None], axis=2) - reach[:, None] - reach[None]
+                          <= max_gap)
+        for a_i, b_i in zip(j, k):
+            if a_i == b_i:
+                continue
+            d = np.linalg.norm(B[a_i][:, None, :] - B[b_i][None, :, :], axis=2)
+            v = np.argmin(d, axis=1)
+            near = d[np.arange(samples), v] <= max_gap
+            mids.append(0.5 * (B[a_i][near] + B[b_i][v[near]]))
+        # obstacle - boundary of W': each sample near it and its foot along W's normal
+        flat = B.reshape(-1, 2)
+        dist = -np.asarray(ws.distance(flat), dtype=float).reshape(-1)
+        near = (dist > 0.0) & (dist <= max_gap)
+        if near.any():
+            n = np.asarray(ws.gradient(flat[near]), dtype=float).reshape(-1, 2)
+            n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+            mids.append(flat[near] + 0.5 * dist[near, None] * n)
+        m = np.concatenate(mids)
+        if not len(m):
+            return m
+        _, first = np.unique(np.floor(m / spacing).astype(np.int64), axis=0, return_index=True)
+        return m[np.sort(first)]
 
     # ------------------------------------------------------------------ revision (4.2.3)
     def with_obstacles(self, new, extra=None) -> "Roadmap":

@@ -233,6 +233,35 @@ def test_blocked_executive_resumes_when_a_map_update_reopens_the_way():
 
 
 # ---------------------------------------------------------------------- narrow passages
+def _slit_world(slit: float) -> World:
+    """A wall across a 4 x 3 m room with one passage ``slit`` wide at mid-height: open at the
+    fallback buffer for ``slit`` > 0.26 m, too narrow for any boundary vertex to see through."""
+    h = 1.5 - slit / 2
+    return World.from_dict({
+        "name": "slit", "workspace": {"center": [2.0, 1.5], "width": 4.0, "height": 3.0, "s": 0.99},
+        "obstacles": [{"center": [2.0, h / 2], "width": 0.2, "height": h, "s": 0.99},
+                      {"center": [2.0, 3.0 - h / 2], "width": 0.2, "height": h, "s": 0.99}],
+        "known_obstacles": [0, 1],
+        "regions": {"a": {"center": [0.6, 0.5], "radius": 0.15}, "b": {"center": [3.4, 2.5], "radius": 0.15}},
+        "robot": {"radius": 0.1, "start": [0.6, 0.5, 0.0], "v_max": 0.5, "omega_max": 1.5},
+        "lidar": {"range": 2.0, "fov": 6.283185, "beams": 360, "noise_std": 0.0, "rate_hz": 10},
+        "task": "F b"})
+
+
+@pytest.mark.parametrize("slit", [0.28, 0.32])
+def test_a_region_behind_a_passage_no_roadmap_vertex_sees_through_is_reached_not_blocked(slit):
+    """No roadmap has a path to ``b`` (the passage is too narrow for the boundary vertices);
+    the executive adds the passage's vertices to the fallback roadmap (``gap_searches``) and
+    drives through instead of stopping blocked for good (seen on a random world)."""
+    world = _slit_world(slit)
+    ex = Executive(world, known=True)
+    sim = Simulator(world, seed=0)
+    _drive(ex, sim, 400)
+    assert ex.state is ExecutiveState.DONE and ex.visited == ["b"], ex.messages
+    assert ex.gap_searches >= 1 and not any("blocked" in m for m in ex.messages)
+    assert not sim.metrics.collisions
+
+
 def _gap_world() -> World:
     """Two known walls across a 4 x 3 m room leave a 0.4 m gap between them (open at the
     fallback buffer only, for a robot of radius 0.1) and a 0.7 m opening at the bottom: from

@@ -357,6 +357,52 @@ def test_boundary_buffer_opens_a_passage_along_the_known_boundary():
             RoadmapConfig(boundary_buffer=bad)
 
 
+def _slit(case: str, slit: float):
+    """A 4 x 3 m room split by a wall at x = 2 with one passage ``slit`` wide: between the
+    wall's top and the boundary (``boundary``), or between two walls at mid-height
+    (``obstacles``); start and goal on either side, not in line with the passage."""
+    ws = Squircle((2.0, 1.5), 4.0, 3.0, 0.0, 0.99)
+    if case == "boundary":
+        h = 3.0 - slit
+        return ws, [Squircle((2.0, h / 2), 0.2, h, 0.0, 0.99)], (0.6, 2.4, 0.0), (3.4, 2.0, 0.0)
+    h = 1.5 - slit / 2
+    walls = [Squircle((2.0, h / 2), 0.2, h, 0.0, 0.99), Squircle((2.0, 3.0 - h / 2), 0.2, h, 0.0, 0.99)]
+    return ws, walls, (0.6, 0.5, 0.0), (3.4, 2.5, 0.0)
+
+
+@pytest.mark.parametrize("case, slit", [("boundary", 0.29), ("boundary", 0.3), ("obstacles", 0.3), ("obstacles", 0.32)])
+def test_gap_candidates_open_a_passage_the_boundary_vertices_do_not_see_through(case, slit):
+    """A passage a few centimetres wide at the buffer (``2 (r + b)`` = 0.26 m of the slit
+    taken): no boundary vertex sees through it, so the roadmap reports the goal walled off;
+    with :meth:`Roadmap.gap_candidates` added, the tree goes through, every segment safe."""
+    ws, walls, start, goal = _slit(case, slit)
+    rm = Roadmap.build(ws, walls, 0.1, RoadmapConfig(buffer=0.03))
+    with pytest.raises(NoTreePathError) as info:
+        plan_tree(rm, start, goal)
+    assert info.value.reason is TreeFailure.DISCONNECTED
+    cand = rm.gap_candidates()
+    assert cand.shape[1] == 2 and np.isfinite(cand).all()
+    opened = rm.with_obstacles((), extra=cand)
+    tree = plan_tree(opened, start, goal)
+    _check_tree(tree, opened, start, goal)
+    assert tree.translations.sum() < 4.5  # through the passage (no other way exists)
+
+
+@pytest.mark.parametrize("case", ["boundary", "obstacles"])
+def test_gap_candidates_do_not_open_a_passage_closed_at_the_buffer(case):
+    ws, walls, start, goal = _slit(case, 0.25)  # 1 cm short of 2 (r + b)
+    rm = Roadmap.build(ws, walls, 0.1, RoadmapConfig(buffer=0.03))
+    opened = rm.with_obstacles((), extra=rm.gap_candidates())
+    assert opened.safe_points(opened.points).all()
+    with pytest.raises(NoTreePathError) as info:
+        plan_tree(opened, start, goal)
+    assert info.value.reason is TreeFailure.DISCONNECTED
+    assert Roadmap.build(ws, [], 0.1).gap_candidates().shape == (0, 2)
+    for bad in ({"max_gap": 0.0}, {"spacing": -1.0}, {"samples": 2}):
+        with pytest.raises(TampError, match="gap_candidates"):
+            rm.gap_candidates(**bad)
+
+
 def test_walled_off_goal_is_reported():
     ws, walls = _walled_world()
     rm = Roadmap.build(ws, walls, 0.05, RoadmapConfig(buffer=0.05))
