@@ -4,6 +4,7 @@ Run from the repository root::
 
     python -m benchmarks.executive [--quick] [--random 10] [--out benchmarks/results]
                                    [--jitter K] [--jobs N] [--set NAME=VALUE ...]
+    python -m benchmarks.executive --sweep 100:400 [--jobs N] [--set ...]
 
 For the shared worlds (``simple``, ``office``, ``cluttered20``; their own missions, office with
 its urgent event) and random forest worlds (``tests/worldgen.py`` seeds ``0 .. N-1`` with
@@ -37,6 +38,12 @@ executive's default controller, e.g. ``--set 'controller={"accel_max": 1.0}'``, 
 tick times are measured one mission at a time). Every mission runs in a process of its own,
 forked from the prepared benchmark process (:func:`benchmarks._common.isolated_map`), so none
 is timed with the memos (forest results, LTL translation) that the missions before it filled.
+
+``--sweep A:B`` runs instead a robustness sweep over the random worlds of seeds ``A .. B-1``
+(seeds the benchmark and the tests were not developed on; nominal start poses, ``--jobs N``
+processes, not timed) and reports the missions that did not complete or touched an obstacle,
+with their state and message, and the distance ratios; results ``<out>/executive_sweep.json``
+and ``.md``.
 
 Results: ``<out>/executive.json`` and ``<out>/executive.md`` (also printed); progress on stderr.
 """
@@ -145,6 +152,52 @@ def run_jitter(names: Sequence[str], runs: int, max_time: float = 300.0, config:
 def _log_jitter(_job, r: dict) -> None:
     log(f"[bench] {r['world']} jitter {r['k']}: completed={r['completed']} collisions={r['collisions']} "
         f"distance={r['distance']:.2f} ratio={'-' if r['ratio'] is None else round(r['ratio'], 3)}")
+
+
+def run_sweep(seeds: Sequence[int], max_time: float = 300.0, config: ExecutiveConfig | None = None,
+              jobs: int = 1) -> dict:
+    """The nominal missions of the random worlds ``seeds`` in ``jobs`` processes, untimed
+    (module doc, ``--sweep``)."""
+    rows = isolated_map(_sweep_run, [(f"random{s}", max_time, config) for s in seeds], jobs, _log_sweep)
+    return {"machine": machine_info(), "seeds": [int(seeds[0]), int(seeds[-1]) + 1] if len(seeds) else [],
+            "rows": rows}
+
+
+def _sweep_run(job) -> dict:
+    name, max_time, config = job
+    world, task = _world(name)
+    r = run_mission(world, task, max_time=max_time, config=config)
+    tour, ratio = _tour_ratio(world, r)
+    return {"world": name, "tour": tour, "ratio": ratio, **{k: r[k] for k in (
+        "completed", "collisions", "distance", "execution_time", "state", "message", "visited")}}
+
+
+def _log_sweep(_job, r: dict) -> None:
+    log(f"[bench] {r['world']}: completed={r['completed']} collisions={r['collisions']} "
+        f"distance={r['distance']:.2f} ratio={'-' if r['ratio'] is None else round(r['ratio'], 3)}")
+
+
+def render_sweep(result: dict) -> str:
+    rows = result["rows"]
+    bad = [r for r in rows if not r["completed"] or r["collisions"]]
+    ratios = np.array([r["ratio"] for r in rows if r["ratio"] is not None])
+    a, b = result["seeds"] or (0, 0)
+    lines = ["# Executive: robustness sweep over random worlds", "",
+             f"Command: `python -m benchmarks.executive --sweep {a}:{b}` (nominal start poses, every obstacle "
+             "unknown, at most 300 simulated s per mission).", "",
+             f"Completed {sum(r['completed'] for r in rows)}/{len(rows)}, collisions "
+             f"{sum(r['collisions'] for r in rows)}, total distance {sum(r['distance'] for r in rows):.1f} m, "
+             f"total time {sum(r['execution_time'] for r in rows):.0f} s."]
+    if len(ratios):
+        lines.append(f"Distance / full-knowledge tour: median {np.median(ratios):.3f}, p90 "
+                     f"{np.percentile(ratios, 90):.3f}, max {ratios.max():.2f}; within 1.25 x: "
+                     f"{int((ratios <= 1.25).sum())}/{len(ratios)}.")
+    if bad:
+        lines += ["", "| world | completed | collisions | state | message |", "|---|---|---:|---|---|"]
+        lines += [f"| {r['world']} | {'yes' if r['completed'] else 'no'} | {r['collisions']} | {r['state']} | "
+                  f"{r['message'][:200]} |" for r in bad]
+    lines += ["", f"Machine: {result['machine']}"]
+    return "\n".join(lines) + "\n"
 
 
 def _nominal_run(job) -> dict:
@@ -286,14 +339,30 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--jobs", type=int, default=1, help="processes for the jittered runs")
     parser.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                         help="ExecutiveConfig override (VALUE in JSON), repeatable")
+    parser.add_argument("--sweep", metavar="A:B", help="instead: robustness sweep over random worlds A .. B-1")
     args = parser.parse_args(argv)
     if args.jitter < 0 or args.jobs < 1:
         parser.error("--jitter must be >= 0 and --jobs >= 1")
+    sweep = None
+    if args.sweep is not None:
+        try:
+            a, b = (int(x) for x in args.sweep.split(":"))
+        except ValueError:
+            parser.error(f"--sweep must be A:B (two integers), got {args.sweep!r}")
+        if not 0 <= a < b:
+            parser.error(f"--sweep A:B needs 0 <= A < B, got {args.sweep!r}")
+        sweep = range(a, b)
     over = _overrides(args.set)
     try:
         config = dataclasses.replace(ExecutiveConfig(), **over) if over else None
     except Exception as err:  # the config's own validation (TampError): one line, exit 2
         raise SystemExit(f"python -m benchmarks.executive: {err}") from None
+    if sweep is not None:
+        result = run_sweep(sweep, args.max_time, config, args.jobs)
+        if over:
+            result["config"] = {k: dataclasses.asdict(v) if dataclasses.is_dataclass(v) else v for k, v in over.items()}
+        write_results(args.out, "executive_sweep", result, render_sweep(result))
+        return 0
     names = ["simple"] if args.quick else list(SHARED) + [f"random{s}" for s in range(args.random)]
     result = run(names, args.max_time, config)
     if over:  # JSON-ready: the controller's settings in full

@@ -132,3 +132,23 @@ def test_executive_benchmark_crawl_guard_override():
         exe_bench._overrides(['crawl_guard={"reach": 0.5}'])
     with pytest.raises(SystemExit, match="crawl_guard"):
         exe_bench._overrides(['crawl_guard={"no_such_field": 1}'])
+
+
+def test_executive_benchmark_sweep_reports_every_world_and_refuses_a_bad_range(tmp_path, capsys):
+    """``python -m benchmarks.executive --sweep A:B``: one row per seed (nominal start poses),
+    the summary in the table; a malformed or empty range is a one-line error."""
+    import pytest
+
+    from benchmarks import executive as exe_bench
+
+    out = tmp_path / "results"
+    assert exe_bench.main(["--sweep", "3:5", "--jobs", "2", "--out", str(out)]) == 0
+    data = json.loads((out / "executive_sweep.json").read_text())
+    assert data["seeds"] == [3, 5] and [r["world"] for r in data["rows"]] == ["random3", "random4"]
+    assert all(r["completed"] and r["collisions"] == 0 and r["ratio"] > 0.9 for r in data["rows"])
+    table = (out / "executive_sweep.md").read_text()
+    assert "--sweep 3:5" in table and "Completed 2/2, collisions 0" in table
+    assert capsys.readouterr().out.strip() == table.strip()
+    for bad in ("5:3", "x:4", "4"):
+        with pytest.raises(SystemExit):
+            exe_bench.main(["--sweep", bad, "--out", str(out)])
