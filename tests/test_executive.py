@@ -12,6 +12,7 @@ anything) with a visit-all mission over their 4 regions.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import json
 import math
 import subprocess
@@ -213,7 +214,8 @@ def test_blocked_executive_resumes_when_a_map_update_reopens_the_way():
     from navigation.geometry import Squircle
 
     world = _open_corridor()
-    ex = Executive(world, "F b", known=True)
+    # no looks (look_tries=0): blocked at once (the looks have tests of their own below)
+    ex = Executive(world, "F b", known=True, config=ExecutiveConfig(look_tries=0))
     ex.omap = omap = _ScriptedMap(world)
     sim = Simulator(world, seed=0)
     _drive(ex, sim, 20, stop=lambda ex: False)
@@ -229,6 +231,52 @@ def test_blocked_executive_resumes_when_a_map_update_reopens_the_way():
     omap.script(removed=[7])  # the estimate goes: the way is open again
     _drive(ex, sim, 600)
     assert ex.state is ExecutiveState.DONE and "b" in ex.visited, ex.messages
+    assert not sim.metrics.collisions
+
+
+def test_an_unreachable_region_is_looked_at_from_up_to_look_tries_points_then_blocked():
+    """Going to look (module doc): with ``b`` walled off (the 0.24 m gap), the robot first
+    drives to the reachable points nearest to ``b``, three of them at least ``LOOK_SPACING``
+    apart, and only then stops, blocked; with ``look_tries=0`` it stops at once."""
+    from tamp.executive import LOOK_SPACING
+
+    world = _corridor(0.24)
+    ex = Executive(world)
+    sim = Simulator(world, seed=0)
+    res = _drive(ex, sim, 600, stop=lambda ex: ex.state is ExecutiveState.BLOCKED)
+    assert ex.state is ExecutiveState.BLOCKED and ex.unreachable == ("b",), ex.messages
+    assert (res.v, res.omega) == (0.0, 0.0) and not sim.metrics.collisions
+    looks = [m for m in ex.messages if "going to look" in m]
+    assert [m.split("(look ")[1] for m in looks] == ["1 of 3)", "2 of 3)", "3 of 3)"], ex.messages
+    pts = np.array(ex._looked["b"])
+    assert len(pts) == 3 and min(math.dist(a, b) for a, b in itertools.combinations(pts, 2)) >= LOOK_SPACING
+    assert all(pt[0] < 2.6 for pt in pts)  # on the robot's side of the wall
+    now = Executive(world, config=ExecutiveConfig(look_tries=0))
+    sim = Simulator(world, seed=0)
+    _drive(now, sim, 100, stop=lambda ex: ex.state is ExecutiveState.BLOCKED)
+    assert now.state is ExecutiveState.BLOCKED and not any("look" in m for m in now.messages)
+    assert sim.time < 3.0
+    with pytest.raises(TampError, match="look_tries"):
+        ExecutiveConfig(look_tries=-1)
+
+
+def test_a_look_that_shows_the_way_open_completes_the_mission():
+    """A phantom estimate closes the way to ``b``; instead of stopping, the robot goes to look,
+    and when the phantom goes as the robot comes near (a closer view), the mission completes."""
+    from navigation.geometry import Squircle
+
+    world = _open_corridor()
+    ex = Executive(world, "F b", known=True)
+    ex.omap = omap = _ScriptedMap(world)
+    sim = Simulator(world, seed=0)
+    _drive(ex, sim, 20, stop=lambda ex: False)
+    omap.script(added=[(7, Squircle((2.6, 0.45), 0.2, 0.9, 0.0, 0.99))])
+    _drive(ex, sim, 300, stop=lambda ex: math.dist(sim.pose[:2], (2.6, 0.45)) < 0.8)
+    assert ex.state is ExecutiveState.EXECUTING and any("going to look" in m for m in ex.messages), ex.messages
+    omap.script(removed=[7])
+    _drive(ex, sim, 600)
+    assert ex.state is ExecutiveState.DONE and "b" in ex.visited, ex.messages
+    assert not any(m.startswith("[") and "] blocked:" in m for m in ex.messages)
     assert not sim.metrics.collisions
 
 
