@@ -80,6 +80,14 @@ def test_random_world_visit_all_completes_safely_full(seed):
     _check_random(seed)
 
 
+@pytest.mark.parametrize("seed", [103, 520])
+def test_sweep_worlds_whose_robot_once_stopped_blocked_for_good_complete(seed):
+    """``python -m benchmarks.executive --sweep`` found these (thirty-second session): on 103 no
+    roadmap vertex saw through the passages out of a pocket (narrow passages), on 520 two bars
+    seen from one side hid the region under one estimate (going to look)."""
+    _check_random(seed)
+
+
 # ---------------------------------------------------------------------- blocked
 def _corridor(gap: float) -> World:
     """A 4 x 1.5 m corridor cut by an (unknown) wall from the top that leaves ``gap`` at the
