@@ -111,7 +111,9 @@ def run_mission(world, task: str | None = None, known: bool = False, seed: int =
         s: the same figures without the time other processes take on a loaded machine),
         ``bad_commands`` (non-finite or out-of-limit commands: must be 0), ``min_clearance``,
         ``map_changes``, ``trees_planned``, ``guard_stops`` (ticks the motion guard slowed),
-        ``obstacles`` (estimates at the end), ``messages``.
+        ``gap_searches`` (transitions no roadmap connected: passages searched), ``looks`` (look
+        points the robot went to before it could be blocked), ``obstacles`` (estimates at the
+        end), ``messages``.
 
     Raises
     ------
@@ -206,6 +208,8 @@ def run_mission(world, task: str | None = None, known: bool = False, seed: int =
         "map_changes": ex.map_changes,
         "trees_planned": ex.trees_planned,
         "guard_stops": ex.guard_stops,
+        "gap_searches": int(getattr(ex, "gap_searches", 0)),
+        "looks": int(getattr(ex, "looks", 0)),
         "obstacles": len(ex.obstacles),
         "messages": ex.messages[-20:],
     }
