@@ -838,7 +838,6 @@ class Executive:
         self.map_changes = 0
         self._observed_change = False  # a map change by observe() that the next tick reports
         self.gap_searches = 0  #: transitions no roadmap connected, so the fallback roadmap's passages were searched
-        self.looks = 0  #: look points the robot set out for (module doc, "Going to look")
         self.trees_planned = 0
         self.guard_stops = 0  #: ticks whose speed the motion guard reduced
         self._guard_noted = -math.inf
@@ -1673,7 +1672,6 @@ class Executive:
                     continue
                 if current is None or math.dist(q, current) > 1e-9:
                     looked.append((goal[0], goal[1]))
-                    self.looks += 1
                     self._note(f"cannot reach {name} with the obstacles seen so far: going to look from "
                                f"({q[0]:.2f}, {q[1]:.2f}), {math.dist(q, c):.2f} m from it "
                                f"(look {len(looked)} of {tries})")
@@ -1683,6 +1681,11 @@ class Executive:
                 self._looking = name
                 return True
         return False
+
+    @property
+    def looks(self) -> int:
+        """Look points the robot set out for (module doc, "Going to look")."""
+        return sum(len(v) for v in self._looked.values())
 
     def _look_candidates(self, p, c, avoid) -> np.ndarray:
         """Look points for a region centred at ``c``, nearest first: the vertices of the
