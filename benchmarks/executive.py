@@ -120,15 +120,23 @@ def jittered_start(world, k: int, *, sigma: float = 0.005, sigma_theta: float = 
     raise ValueError(f"no perturbed start pose clear of the obstacles near {world.robot.start}")
 
 
-def _jitter_run(job) -> dict:
+def _untimed_run(job) -> dict:
+    """One mission, untimed (the jittered runs and the sweep): from start pose ``k`` of
+    :func:`jittered_start`, or from the world's own start pose when ``k`` is 0."""
     name, k, max_time, config = job
     world, task = _world(name)
-    world = jittered_start(world, k)
+    if k:
+        world = jittered_start(world, k)
     r = run_mission(world, task, max_time=max_time, config=config)
     tour, ratio = _tour_ratio(world, r)
-    return {"world": name, "k": k, "completed": r["completed"], "collisions": r["collisions"],
-            "distance": r["distance"], "tour": tour, "ratio": ratio,
-            "execution_time": r["execution_time"], "visited": r["visited"]}
+    return {"world": name, "k": k, "tour": tour, "ratio": ratio, **{key: r[key] for key in (
+        "completed", "collisions", "distance", "execution_time", "state", "message", "visited")}}
+
+
+def _log_untimed(_job, r: dict) -> None:
+    log(f"[bench] {r['world']}" + (f" jitter {r['k']}" if r["k"] else "") + f": completed={r['completed']} "
+        f"collisions={r['collisions']} distance={r['distance']:.2f} "
+        f"ratio={'-' if r['ratio'] is None else round(r['ratio'], 3)}")
 
 
 def _tour_ratio(world, r: dict) -> tuple[float | None, float | None]:
@@ -146,35 +154,16 @@ def run_jitter(names: Sequence[str], runs: int, max_time: float = 300.0, config:
                jobs: int = 1) -> list[dict]:
     """``runs`` missions per world from jittered start poses (module doc)."""
     todo = [(name, k, max_time, config) for name in names for k in range(1, runs + 1)]
-    return isolated_map(_jitter_run, todo, jobs, _log_jitter)
-
-
-def _log_jitter(_job, r: dict) -> None:
-    log(f"[bench] {r['world']} jitter {r['k']}: completed={r['completed']} collisions={r['collisions']} "
-        f"distance={r['distance']:.2f} ratio={'-' if r['ratio'] is None else round(r['ratio'], 3)}")
+    return isolated_map(_untimed_run, todo, jobs, _log_untimed)
 
 
 def run_sweep(seeds: Sequence[int], max_time: float = 300.0, config: ExecutiveConfig | None = None,
               jobs: int = 1) -> dict:
     """The nominal missions of the random worlds ``seeds`` in ``jobs`` processes, untimed
     (module doc, ``--sweep``)."""
-    rows = isolated_map(_sweep_run, [(f"random{s}", max_time, config) for s in seeds], jobs, _log_sweep)
+    rows = isolated_map(_untimed_run, [(f"random{s}", 0, max_time, config) for s in seeds], jobs, _log_untimed)
     return {"machine": machine_info(), "seeds": [int(seeds[0]), int(seeds[-1]) + 1] if len(seeds) else [],
             "rows": rows}
-
-
-def _sweep_run(job) -> dict:
-    name, max_time, config = job
-    world, task = _world(name)
-    r = run_mission(world, task, max_time=max_time, config=config)
-    tour, ratio = _tour_ratio(world, r)
-    return {"world": name, "tour": tour, "ratio": ratio, **{k: r[k] for k in (
-        "completed", "collisions", "distance", "execution_time", "state", "message", "visited")}}
-
-
-def _log_sweep(_job, r: dict) -> None:
-    log(f"[bench] {r['world']}: completed={r['completed']} collisions={r['collisions']} "
-        f"distance={r['distance']:.2f} ratio={'-' if r['ratio'] is None else round(r['ratio'], 3)}")
 
 
 def render_sweep(result: dict) -> str:
