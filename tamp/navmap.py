@@ -28,7 +28,11 @@ Symbols
 
 State lives in one object: the current cost of every edge, the set of removed edges (with the
 cost they had), a version counter bumped by every change, and a log of changes from which
-:meth:`NavigationMap.changes_since` tells a cache exactly which edges changed and how.
+:meth:`NavigationMap.changes_since` tells a cache exactly which edges changed and how. The log
+is bounded (a long-running executive re-costs thousands of edges a minute): beyond
+``log_limit`` entries its older half is dropped, whole versions at a time, and
+``changes_since`` a version older than what it keeps (``log_floor``) answers ``None``: treat
+every edge as changed.
 
 References
 ----------
@@ -158,6 +162,10 @@ class NavigationMap:
         self._removed: dict[int, float] = {}  # edge id -> cost it had before removal
         self.version = 0
         self._log: list[tuple[int, int, float, float]] = []  # (version, edge, old, new)
+        #: entries the change log keeps at most (module doc); four full re-costs of the map
+        self.log_limit = max(4 * N * N, 4096)
+        #: oldest version :meth:`changes_since` can answer for
+        self.log_floor = 0
         for i in range(self.num_region_nodes):
             for j in range(self.num_region_nodes):
                 if i != j:
@@ -277,10 +285,14 @@ class NavigationMap:
         r = self.num_region_nodes
         return r * (r - 1) + (r if self.has_start else 0)
 
-    def changes_since(self, version: int) -> dict[int, tuple[float, float]]:
-        """Edges whose cost differs from what it was at ``version``: ``{edge id: (then, now)}``."""
+    def changes_since(self, version: int) -> dict[int, tuple[float, float]] | None:
+        """Edges whose cost differs from what it was at ``version``: ``{edge id: (then, now)}``;
+        ``None`` when ``version`` is older than the bounded log keeps (``log_floor``, module
+        doc): the caller must treat every edge as changed."""
         if version >= self.version:
             return {}
+        if version < self.log_floor:
+            return None
         out: dict[int, tuple[float, float]] = {}
         # the log is ordered by version; walk back to the first entry after `version`
         lo = len(self._log)
@@ -322,7 +334,19 @@ class NavigationMap:
                 self._log.append((self.version, e, old, c))
                 self._cost[e] = c
                 changed += 1
+        if len(self._log) > self.log_limit:
+            self._trim_log()
         return changed
+
+    def _trim_log(self) -> None:
+        """Drop the log's older half, whole versions at a time (a version's entries are
+        contiguous); :meth:`changes_since` answers from ``log_floor`` on."""
+        v = self._log[len(self._log) // 2][0]
+        k = len(self._log) // 2
+        while k < len(self._log) and self._log[k][0] <= v:
+            k += 1
+        del self._log[:k]
+        self.log_floor = v
 
     def set_cost(self, u, v, cost: float, *, symmetric: bool = True) -> int:
         """Set the cost of ``u -> v`` (and ``v -> u`` when ``symmetric``); returns the number of

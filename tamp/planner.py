@@ -618,6 +618,8 @@ class MissionPlanner:
         changes = m.changes_since(self._seen_version)
         self._seen_version = m.version
         if self._mission is None or not changes:
+            if changes is None and self._mission is not None:
+                self._mission.cycles.clear()  # older than the map's log keeps: all may have changed
             return
         N = m.num_nodes
         cache = self._mission.cycles

@@ -74,6 +74,39 @@ def test_edits_versions_and_change_log():
     assert m.cost(Node("a", 0), Node("c", 1)) == pytest.approx(1.5 + 0.1 * math.pi)
 
 
+def test_the_change_log_is_bounded_and_exact_from_its_floor():
+    """Thousands of edits: the log stays within its limit (plus one edit), ``changes_since``
+    any version from ``log_floor`` on equals the difference of cost snapshots, and an older
+    version answers ``None``."""
+    import random
+
+    rng = random.Random(5)
+    m = NavigationMap(REGIONS, n_orient=2, w=0.1)
+    m.log_limit = 64
+    snaps = {m.version: list(m.costs)}
+    names = sorted(REGIONS)
+    for _ in range(2000):
+        u, v = rng.sample(names, 2)
+        r = rng.random()
+        if r < 0.6:
+            m.set_cost(u, v, rng.uniform(0.0, 9.0))
+        elif r < 0.8:
+            m.remove_edge(u, v)
+        else:
+            m.restore_edge(u, v)
+        assert len(m._log) <= m.log_limit + 8  # an edit of two regions changes at most 8 edges here
+        snaps[m.version] = list(m.costs)
+    assert m.log_floor > 0
+    for version, then in snaps.items():
+        ch = m.changes_since(version)
+        if version < m.log_floor:
+            assert ch is None
+            continue
+        want = {e: (a, b) for e, (a, b) in enumerate(zip(then, m.costs)) if a != b}
+        assert ch == want, version
+    assert m.changes_since(m.log_floor - 1) is None and m.changes_since(m.version) == {}
+
+
 def test_bad_inputs_are_named():
     with pytest.raises(InvalidRequestError, match="n_orient"):
         NavigationMap(REGIONS, n_orient=0)

@@ -171,14 +171,19 @@ def test_office_mission_plan():
 
 
 # ---- re-planning -----------------------------------------------------------------------------
+@pytest.mark.parametrize("log_limit", [None, 40])
 @pytest.mark.parametrize("seed", range(4))
-def test_replan_equals_planning_from_scratch(seed):
+def test_replan_equals_planning_from_scratch(seed, log_limit):
+    """Also with a map whose change log keeps only 40 entries (a long run's bounded log): a
+    version older than the log answers ``None`` and the planner drops its caches."""
     rng = random.Random(100 + seed)
     regions = random_regions(rng, 5)
     formula = ["G F a & G F b & G F c", "F(a & F b) & G F e", "G(a -> F b) & G F a & G !d",
                "G F(a | c) & G F b"][seed]
     kw = dict(n_orient=4, w=0.2, alpha=1.5, start=(2.5, 2.5, 0.0))
     live = MissionPlanner(regions, formula, **kw)
+    if log_limit is not None:
+        live.navmap.log_limit = log_limit
     reused = 0
     for step in range(25):
         ops = []
@@ -212,6 +217,8 @@ def test_replan_equals_planning_from_scratch(seed):
             assert a.cost == pytest.approx(reference_cost(live, live.current))
         check_lasso(live, a)
     assert reused > 0  # the caches were actually used
+    if log_limit is not None:
+        assert live.navmap.log_floor > 0 and len(live.navmap._log) <= log_limit + 32  # + one edit's entries
 
 
 def test_replan_reuses_cycles_and_plan():
