@@ -235,8 +235,10 @@ Choices where the paper is vague, and why
   to passing the next (turning and slowing down make it exceed ``d``). Only edges completed by
   passing their end waypoint count (not legs cut by a re-plan, the last edge into a region, or
   a waypoint passed by the stall guard). From ``refit_min_edges`` edges on, every new edge
-  refits ``w* = (Q^T Q)^-1 Q^T (gamma* - d)`` over all edges so far (``d``, ``Q`` of the edge
-  as driven: its end poses), clipped to ``weight_bounds``; the navigation-map costs of every
+  refits ``w* = (Q^T Q)^-1 Q^T (gamma* - d)`` over the last ``refit_window`` (1000) edges
+  (``d``, ``Q`` of the edge as driven: its end poses; a window so that a robot patrolling for
+  days neither keeps every edge nor refits over all of them: a mission of the benchmarks
+  drives fewer), clipped to ``weight_bounds``; the navigation-map costs of every
   evaluated tree are then recomputed with ``w*`` (same paths, :meth:`HarmonicTree.recost`) and
   new trees are searched with ``w*``; the next re-plan uses them.
 
@@ -250,6 +252,7 @@ import enum
 import logging
 import math
 import time
+from collections import deque
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 
@@ -338,6 +341,8 @@ GUARD_SLIDE_TIME = 2.0  #: seconds of a slide (Executive._slid)
 GUARD_SLIDE_SPEED = 0.1  #: m/s at most during a slide
 GUARD_SAME_SPOT = 0.05  #: returns this close (m) count as the same spot for repeated holds
 GUARD_PHANTOM_RADIUS = 0.002  #: radius (m) of the disc the roadmaps avoid at a return that held the robot twice
+MESSAGES_KEPT = 500  #: notes ``Executive.messages`` keeps at least (the latest; bounded for a long run)
+REPLANS_KEPT = 10000  #: latest re-plan times ``Executive.replan_times`` keeps at least (``replans`` counts them all)
 
 
 @dataclass(frozen=True, slots=True)
@@ -376,6 +381,9 @@ class ExecutiveConfig:
         Refit the rotation weights of eq. 26 from the traversed edges (section 4.2.3, step III).
     refit_min_edges : int
         Traversed edges needed before the first refit.
+    refit_window : int
+        The refit uses the last this many traversed edges (a bounded memory for a long-running
+        robot).
     weight_bounds : (float, float)
         Each refitted weight is clipped to this range (metres per radian).
     shortcut_legs : bool
@@ -492,6 +500,7 @@ class ExecutiveConfig:
     stall_ticks: int = 20
     refit_weights: bool = True
     refit_min_edges: int = 4
+    refit_window: int = 1000
     weight_bounds: tuple = (0.01, 1.0)
     shortcut_legs: bool = True
     detour_ratio: float = 2.0
@@ -526,10 +535,14 @@ class ExecutiveConfig:
                 check_numbers(self, (name,), positive=False, error=TampError)
         if not (isinstance(self.waypoint_tolerance, (int, float)) and self.waypoint_tolerance > 0):
             raise TampError(f"ExecutiveConfig.waypoint_tolerance must be > 0, got {self.waypoint_tolerance!r}")
-        for name in ("rebuild_after", "n_orient", "n_headings", "max_plan_rounds", "stall_ticks", "refit_min_edges"):
+        for name in ("rebuild_after", "n_orient", "n_headings", "max_plan_rounds", "stall_ticks", "refit_min_edges",
+                     "refit_window"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:
                 raise TampError(f"ExecutiveConfig.{name} must be a positive int, got {v!r}")
+        if self.refit_window < self.refit_min_edges:
+            raise TampError(f"ExecutiveConfig.refit_window ({self.refit_window}) must be at least refit_min_edges "
+                            f"({self.refit_min_edges}): the refit needs that many edges")
         if isinstance(self.look_tries, bool) or not isinstance(self.look_tries, int) or self.look_tries < 0:
             raise TampError(f"ExecutiveConfig.look_tries must be an int >= 0, got {self.look_tries!r}")
         for name in ("refit_weights", "shortcut_legs", "turn_cap", "turn_cap_rate_limited", "route_rescue"):
@@ -776,9 +789,9 @@ class Executive:
         self.weights = RotationWeights()
         self.weight_fits = 0  #: refits of the rotation weights so far
         # traversed edges: translation d, rotation terms Q (eq. 26), measured cost v_max * dt
-        self._edges_d: list[float] = []
-        self._edges_q: list[tuple[float, float]] = []
-        self._edges_cost: list[float] = []
+        self._edges_d: deque[float] = deque(maxlen=cfg.refit_window)
+        self._edges_q: deque[tuple[float, float]] = deque(maxlen=cfg.refit_window)
+        self._edges_cost: deque[float] = deque(maxlen=cfg.refit_window)
         self._edge_t0: float | None = None  # when the robot left the current edge's start
         # the obstacle model by key: ("known", index) and ("estimate", perception id)
         self._model: dict = {("known", i): o for i, o in enumerate(known_obs)}
@@ -1077,6 +1090,7 @@ class Executive:
     def _note(self, msg: str) -> None:
         self.message = msg
         self.messages.append(f"[{self.time:.1f}] {msg}")
+        _keep_last(self.messages, MESSAGES_KEPT)
         log.info("executive: %s", msg)
 
     def _result(self, v, w, t0, replanned, map_changed) -> TickResult:
@@ -1434,6 +1448,8 @@ class Executive:
             else:
                 self.replan_times.append(dt)
                 self.replan_cpu_times.append(time.process_time() - c0)
+                _keep_last(self.replan_times, REPLANS_KEPT)
+                _keep_last(self.replan_cpu_times, REPLANS_KEPT)
         if self.state is ExecutiveState.EXECUTING and self.target != prev_target:
             log.info("executive: next region %s", self.target)
 
@@ -2069,6 +2085,13 @@ def _narrow_samples(rm, tree):
     buffer to an obstacle or the boundary (not :meth:`Roadmap.safe_points`)."""
     pts = np.array([w[:2] for w in _subdivide(tree.waypoints, 0.02)], dtype=float)
     return pts, ~rm.safe_points(pts)
+
+
+def _keep_last(items: list, n: int) -> None:
+    """Bound a log a long-running executive appends to: past ``2 n`` entries, keep the last
+    ``n`` (amortised O(1) per append)."""
+    if len(items) > 2 * n:
+        del items[:-n]
 
 
 def _subdivide(wps, max_len: float):

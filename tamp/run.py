@@ -189,7 +189,7 @@ def run_mission(world, task: str | None = None, known: bool = False, seed: int =
         "execution_time": float(sim.time),
         "planning_time": float(ex.planning_time),
         "max_replan_time": float(max(rt)) if rt else 0.0,
-        "replans": len(rt),
+        "replans": max(ex.replans - 1, 0),  # the first plan is the initial synthesis
         "visited": list(ex.visited),
         "oscillation": _oscillation(omegas, m.distance),
         "state": ex.state.value,

@@ -573,7 +573,9 @@ def test_boundary_buffer_opens_the_first_roadmap_along_the_known_boundary():
             ExecutiveConfig(boundary_buffer=bad)
 
 
-def test_detour_ratio_is_validated():
+def test_config_ratios_and_windows_are_validated():
+    with pytest.raises(TampError, match="refit_window"):
+        ExecutiveConfig(refit_window=3)  # fewer than refit_min_edges (4): it could never refit
     with pytest.raises(TampError, match="detour_ratio"):
         ExecutiveConfig(detour_ratio=-1.0)
     with pytest.raises(TampError, match="centre_reach"):
@@ -670,9 +672,11 @@ def test_rotation_weights_are_refitted_from_traversed_edges():
     assert_costs_follow_the_weights()
 
 
-def test_rotation_weights_refit_during_a_mission():
+@pytest.mark.parametrize("window", [None, 6])
+def test_rotation_weights_refit_during_a_mission(window):
     """In closed loop (cluttered20) the weights are refitted from the measured edges, stay in
-    their bounds, and equal the least-squares fit over the recorded edges."""
+    their bounds, and equal the least-squares fit over the recorded edges: all of them, or with
+    ``refit_window`` the last ones only (a long run's memory stays bounded)."""
     import numpy as np
 
     from tamp.harmonic_tree import RotationWeights
@@ -684,10 +688,13 @@ def test_rotation_weights_refit_during_a_mission():
             super().__init__(*args, **kwargs)
             runs.append(self)
 
-    _check_run(run_mission(shared_world("cluttered20"), max_time=300, executive_cls=Recording))
+    config = ExecutiveConfig() if window is None else ExecutiveConfig(refit_window=window)
+    _check_run(run_mission(shared_world("cluttered20"), max_time=300, executive_cls=Recording, config=config))
     ex = runs[0]
     lo, hi = ex.config.weight_bounds
     assert ex.weight_fits >= 1 and len(ex._edges_d) >= ex.config.refit_min_edges
+    if window is not None:
+        assert len(ex._edges_d) == len(ex._edges_q) == len(ex._edges_cost) == window
     fit = RotationWeights.fit(ex._edges_d, np.array(ex._edges_q), ex._edges_cost)
     assert (ex.weights.w1, ex.weights.w2) == pytest.approx((min(max(fit.w1, lo), hi), min(max(fit.w2, lo), hi)))
 
