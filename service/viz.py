@@ -14,7 +14,10 @@ Entity paths (2-D world frame, metres)::
     world/obstacles/estimated  LineStrips2D   the service's obstacle estimate  (on change)
     world/lidar                Points2D       lidar returns, world frame       (per scan)
     world/robot                Points2D+Arrows2D  pose and heading             (per tick)
-    world/robot/trail          LineStrips2D   path so far                      (per tick)
+    world/robot/trail          LineStrips2D   path so far: its last piece      (per tick)
+    world/robot/trail/<k>      LineStrips2D   its earlier pieces, ``TRAIL_PIECE`` points each
+                                              (once each: a long run's recording grows
+                                              linearly, not quadratically)
     world/path                 LineStrips2D   current leg of the harmonic tree (on change)
     world/path/vertices        Points2D       its waypoints (tree vertices)
     world/goal                 Arrows2D       current waypoint pose (goal of the oriented field)
@@ -69,6 +72,7 @@ __all__ = ["Telemetry"]
 
 log = logging.getLogger("service.viz")
 _OUTLINE = 96  # boundary samples per squircle
+TRAIL_PIECE = 200  # trail points per logged piece (world/robot/trail/<k>)
 # viridis at 0, 0.25, 0.5, 0.75, 1 (low potential dark blue, high yellow)
 _VIRIDIS = np.array([[68, 1, 84], [59, 82, 139], [33, 145, 140], [94, 201, 98], [253, 231, 37]], float)
 
@@ -141,7 +145,8 @@ class Telemetry:
         self._workspace = None      # the world's workspace (for the heat-map grid)
         self._regions = None        # regions last logged
         self._tick = 0
-        self._trail: list[tuple[float, float]] = []
+        self._trail: list[tuple[float, float]] = []  # the piece of the trail being drawn
+        self._trail_pieces = 0  # full pieces logged (world/robot/trail/<k>)
         self._last_state = None
         self._last_plan = None
         self._last_leg = None
@@ -352,6 +357,13 @@ class Telemetry:
                                                                       0.25 * math.sin(pose.theta)]]))
             if not self._trail or math.dist(self._trail[-1], (pose.x, pose.y)) > 0.01:
                 self._trail.append((pose.x, pose.y))
+                if len(self._trail) >= TRAIL_PIECE:
+                    # a full piece is logged once, under an entity of its own; the growing
+                    # piece starts again from its last point
+                    rec.log(f"world/robot/trail/{self._trail_pieces}",
+                            rr.LineStrips2D([self._trail], colors=[[255, 140, 0]]))
+                    self._trail_pieces += 1
+                    self._trail = self._trail[-1:]
                 if len(self._trail) > 1:
                     rec.log("world/robot/trail", rr.LineStrips2D([self._trail], colors=[[255, 140, 0]]))
         scan, points = r["scan"], r["points"]

@@ -192,3 +192,45 @@ def test_max_pending_bounds_the_backlog(simple_brain, tmp_path):
     assert len(tel.times) == 8
     tel.close()
     assert len(tel.times) == 12
+
+
+def test_the_trail_is_logged_in_pieces_each_once(simple_brain, tmp_path):
+    """A long run's trail: full pieces of ``TRAIL_PIECE`` points are logged once under entities
+    of their own, the growing piece at ``world/robot/trail``; together they are the whole path,
+    and no row holds more than a piece (the recording grows linearly with the path)."""
+    from rerun.chunk import RrdReader
+
+    from service.viz import TRAIL_PIECE
+
+    world, brain = simple_brain
+    rrd = tmp_path / "trail.rrd"
+    tel = Telemetry.from_options(record=rrd, recording_id="test-trail")
+    tel.log_world(world)
+    x, y, th = world.robot.start
+    out = brain.tick(PoseMsg(0.0, x, y, th), now=0.0)
+    # circles of radius 0.2 m round a point next to the start, poses 1.5 cm apart: each extends the trail
+    path = [(x + 0.2 * np.cos(0.075 * k) - 0.2, y + 0.2 * np.sin(0.075 * k)) for k in range(int(2.5 * TRAIL_PIECE))]
+    for k, (px, py) in enumerate(path):
+        tel.log_tick(_node(brain, 0.1 * k, px, py, th), out=out, status=out.status, compute=0.001)
+    tel.close()
+    strips: dict[str, list] = {}
+    for chunk in RrdReader(str(rrd)).stream().collect().stream():
+        p = str(chunk.entity_path)
+        if not p.startswith("/world/robot/trail"):
+            continue
+        batch = chunk.to_record_batch()
+        for name in batch.schema.names:
+            if name.endswith("LineStrips2D:strips"):
+                strips.setdefault(p, []).extend(cell[0] for cell in batch.column(name).to_pylist() if cell)
+    full = len(path) // (TRAIL_PIECE - 1)
+    pieces = [f"/world/robot/trail/{k}" for k in range(full)]
+    assert sorted(strips) == sorted(["/world/robot/trail"] + pieces), sorted(strips)
+    assert all(len(strips[p]) == 1 and len(strips[p][0]) == TRAIL_PIECE for p in pieces)  # each logged once
+    assert max(len(s) for v in strips.values() for s in v) <= TRAIL_PIECE
+    # the pieces, then the last row of the growing piece, joined at their shared ends: the path
+    drawn = [tuple(q) for q in strips[pieces[0]][0]]
+    for p in pieces[1:] + ["/world/robot/trail"]:
+        nxt = [tuple(q) for q in strips[p][-1]]
+        assert nxt[0] == drawn[-1]
+        drawn += nxt[1:]
+    assert np.allclose(drawn, path)
