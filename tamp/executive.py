@@ -1232,10 +1232,7 @@ class Executive:
 
     # ------------------------------------------------------------------ progress
     def _universal(self):
-        b = self.planner.automaton
-        if b is None:
-            return frozenset()
-        return ops.universal_states(b, ops.singleton_letters(b, self.planner.navmap.regions))
+        return self.planner.done_states
 
     def _mission_done(self) -> bool:
         if self.planner.pending_urgent:

@@ -288,6 +288,11 @@ class _Mission:
     product: Product
     letters: frozenset[int]
     cycles: dict[int, _Cycle] = field(default_factory=dict)
+    done: frozenset[int] = frozenset()  # universal states (every continuation accepted)
+
+
+def _new_mission(text: str, buchi: Buchi, navmap: NavigationMap, letters: frozenset[int]) -> _Mission:
+    return _Mission(text, buchi, Product(navmap, buchi), letters, done=ops.universal_states(buchi, letters))
 
 
 @dataclass
@@ -354,6 +359,21 @@ class MissionPlanner:
 
     The prefix Dijkstra is re-run from the current states (it stops at the best lasso cost).
     ``last_stats`` tells how many cycle searches ran and how many were reused.
+
+    One run of the automaton (recurrent missions)
+    ---------------------------------------------
+    The automaton is nondeterministic, so a trace leads to a *set* of states. A plan picks one
+    of them and a lasso from it; planning afresh from the whole set at every region would let
+    each plan pick a different run, and a robot that follows every plan's first step need not
+    follow any accepting run: on ``office`` with ``G F p1 & G F d1 & G F d3`` the plans took
+    turns between two runs, each of which had "already" visited the region the other still
+    owed, and the robot went between ``p1`` and ``d3`` for good, never to ``d1`` again. So
+    :meth:`advance` *commits*: arriving at the region the plan goes to next, the states become
+    the plan's state there (with any universal state the trace also reached: a co-safe mission
+    is done as soon as one run is). Every later plan then extends the same run, and arriving
+    at the lasso's accepting state is an accepting visit of that run. The uncommitted set is
+    kept (:attr:`reachable`): when no lasso starts from the committed state (the map changed),
+    :meth:`plan` plans from the whole set instead, and ``add`` conjoins with it.
 
     Mission changes (section 5.2 and FORMATS.md events)
     ---------------------------------------------------
@@ -445,7 +465,8 @@ class MissionPlanner:
         self.navmap = NavigationMap(regions, n_orient=n_orient, w=w, start=pose)
         self._node = self._resolve_start(start)
         self._mission: _Mission | None = None
-        self._states: frozenset[int] = frozenset()
+        self._states: frozenset[int] = frozenset()     # the committed run's state(s) (class doc)
+        self._reachable: frozenset[int] = frozenset()  # every state the trace leads to
         self._urgent: list[_Urgent] = []
         self._violated: str | None = None
         self._seen_version = self.navmap.version
@@ -484,8 +505,8 @@ class MissionPlanner:
             letters = ops.singleton_letters(m.buchi, names)
             if check is not None:
                 check(m.text, m.buchi, self._states, letters, m.letters, False)
-            planner._mission = _Mission(m.text, m.buchi, Product(planner.navmap, m.buchi), letters)
-            planner._states = self._states
+            planner._mission = _new_mission(m.text, m.buchi, planner.navmap, letters)
+            planner._states, planner._reachable = self._states, self._reachable
             planner._violated = self._violated
         for u in self._urgent:  # urgent requests survive every mode, replace included
             letters = ops.singleton_letters(u.buchi, names)
@@ -535,6 +556,18 @@ class MissionPlanner:
         return tuple((self.node, q) for q in sorted(self._states))
 
     @property
+    def done_states(self) -> frozenset[int]:
+        """The main automaton's universal states (every continuation accepted: a co-safe
+        mission is done in one of them); empty without a mission or for a recurrent one."""
+        return self._mission.done if self._mission is not None else frozenset()
+
+    @property
+    def reachable(self) -> frozenset[int]:
+        """Every main-automaton state the trace so far leads to (:attr:`current` holds the
+        committed run's; class doc, "One run of the automaton")."""
+        return self._reachable
+
+    @property
     def pending_urgent(self) -> tuple[str, ...]:
         """Texts of the urgent requests not yet served, in serving order."""
         return tuple(u.text for u in self._urgent)
@@ -577,18 +610,43 @@ class MissionPlanner:
             node = m.node(target)
             if node.region == START:
                 raise InvalidRequestError("advance: use set_position to move to a free pose")
+        expected = self._expected_state(node.region)
         n = m.index[node]
         self._node = n
         self.visited.append(node.region)
         if self._mission is not None and self._violated is None:
-            self._states = self._read(self._mission.buchi, self._states, n)
-            if not self._states:
+            buchi = self._mission.buchi
+            self._reachable = self._read(buchi, self._reachable, n)
+            states = self._read(buchi, self._states, n)
+            if expected is not None and expected in states:
+                # commit to the plan's run (class doc); a universal state stays: done is done
+                states = frozenset((expected,)) | (states & self._mission.done)
+            self._states = states or self._reachable
+            if not self._reachable:
                 self._violated = node.region
         for u in self._urgent:
             u.states = self._read(u.buchi, u.states, n)
         # a request is served once one of its runs is in a universal state (also "in passing")
         self._urgent = [u for u in self._urgent if not (u.states & u.done)]
         return self.current
+
+    def _expected_state(self, region: str) -> int | None:
+        """The main-automaton state the current plan has at its next node, when that node is
+        in ``region``; ``None`` otherwise (no plan, an urgent path still before its end, or the
+        robot entered a region the plan does not go to next)."""
+        p = self._plan
+        if p is None or self._plan_key is None or self._plan_key[1] != self._node:
+            return None
+        if len(p.urgent) > 1:
+            # the main states along an urgent path are not the plan's; its end is prefix[0]
+            nxt = p.prefix_states[0] if len(p.urgent) == 2 else None
+        elif len(p.prefix_states) > 1:
+            nxt = p.prefix_states[1]
+        else:
+            nxt = p.suffix_states[0] if p.suffix_states else None
+        if nxt is None or nxt[0].region != region:
+            return None
+        return nxt[1]
 
     def set_position(self, pose) -> None:
         """The robot is at the free pose ``(x, y[, theta])`` (between regions): it becomes the
@@ -668,10 +726,10 @@ class MissionPlanner:
         text, buchi, letters = self._compile(formula)
         if mode is MissionMode.ADD and self._mission is not None:
             old = self._mission
-            if self._violated is not None or not self._states:
+            if self._violated is not None or not self._reachable:
                 raise NoPlanError(f"cannot add to the mission {old.text!r}: it was violated at "
                                   f"region {self._violated!r}; replace it instead")
-            rest = ops.from_states(old.buchi, self._states)
+            rest = ops.from_states(old.buchi, self._reachable)
             new = ops.from_states(buchi, self._initial_states(buchi))
             text = f"({old.text}) & ({text})"
             inter = ops.intersect(rest, new, name=text)
@@ -683,9 +741,9 @@ class MissionPlanner:
             buchi, letters, states = inter, both_letters, frozenset((inter.initial,))
         else:
             states = self._initial_states(buchi)
-        mission = _Mission(text, buchi, Product(self.navmap, buchi), letters)
+        mission = _new_mission(text, buchi, self.navmap, letters)
         plan = self._compute(mission, states, self._urgent)
-        self._mission, self._states, self._violated = mission, states, None
+        self._mission, self._states, self._reachable, self._violated = mission, states, states, None
         self._seen_version = self.navmap.version
         self._set_plan(plan)
         return plan
@@ -705,10 +763,22 @@ class MissionPlanner:
             raise InvalidRequestError("an urgent request needs an active mission to resume; "
                                       "use mode 'replace'")
         self._sync()
-        plan = self._compute(self._mission, self._states, queue)
+        plan = self._compute_current(queue)
         self._urgent = queue
         self._set_plan(plan)
         return plan
+
+    def _compute_current(self, urgent: list[_Urgent]) -> Plan:
+        """The plan from the committed run's state; when none has a lasso, from every state the
+        trace leads to, which then become the current ones (class doc)."""
+        try:
+            return self._compute(self._mission, self._states, urgent)
+        except NoPlanError:
+            if self._reachable == self._states or self._violated is not None:
+                raise
+            plan = self._compute(self._mission, self._reachable, urgent)
+            self._states = self._reachable
+            return plan
 
     def _set_plan(self, plan: Plan) -> None:
         self._plan = plan
@@ -735,7 +805,7 @@ class MissionPlanner:
         if current is None:
             if self._plan is not None and self._plan_key == self._key():
                 return self._plan
-            plan = self._compute(self._mission, self._states, self._urgent)
+            plan = self._compute_current(self._urgent)
             self._set_plan(plan)
             return plan
         current = [(self.navmap.node(n), int(q)) for n, q in current]

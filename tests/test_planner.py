@@ -408,3 +408,87 @@ def test_with_regions_carries_the_mission_over_and_leaves_the_planner_alone():
     assert sorted(seen) == [False, True]
     with pytest.raises(InvalidRequestError):
         q.with_regions(regions, pose=(0.0, 0.0, 0.0), check=lambda *a: (_ for _ in ()).throw(InvalidRequestError("no")))
+
+
+# ---- following the plans (one run of the automaton) -----------------------------------------
+RECURRENT = ["G F a & G F b & G F c", "G F a & G F b", "G(a -> F b) & G F a & G !d", "G F b & F G !a",
+             "G F(a | c) & G F b", "G F a & G F b & G F c & G F d"]
+
+
+def _follow(planner: MissionPlanner, rng: random.Random, steps: int, *, perturb: bool, urgent_at=None):
+    """Drive ``planner`` like the executive: go to the plan's next region, ``advance`` there;
+    with ``perturb`` re-cost random transitions first (the executive re-costs as it evaluates
+    trees). Returns the regions entered, and ``None`` for "stays where it is for good" (a plan
+    whose lasso never leaves the region: the executive's "nothing left to visit")."""
+    trace = []
+    for step in range(steps):
+        if perturb:
+            for _ in range(rng.randint(0, 3)):
+                u, v = rng.sample(sorted(planner.navmap.regions), 2)
+                planner.set_cost(u, v, rng.uniform(1.0, 8.0))
+        if urgent_at == step:
+            planner.request("F u", "urgent")
+        plan = planner.plan()
+        here = planner.node.region
+        target = next((n.region for n in plan.route + plan.suffix if n.region != here), None)
+        if target is None:
+            if urgent_at is not None and urgent_at > step:
+                continue  # stays, until the urgent request comes
+            return trace + [None]
+        planner.advance(target)
+        trace.append(target)
+    return trace
+
+
+@pytest.mark.parametrize("urgent", [False, True])
+@pytest.mark.parametrize("seed", range(12))
+def test_a_robot_that_follows_its_plans_satisfies_a_recurrent_mission(seed, urgent):
+    """The guarantee behind a recurrent mission: driven plan after plan while the map's costs
+    keep changing (then settle), the robot's trace ends in a cycle, and the lasso word it
+    makes satisfies the formula. Planning from the whole state set at every region broke this
+    (the plans took turns between runs; the robot skipped a region forever); committing to
+    the plan's run (class doc, "One run of the automaton") keeps it."""
+    rng = random.Random(700 + seed)
+    formula = RECURRENT[seed % len(RECURRENT)]
+    regions = random_regions(rng, 5)
+    if urgent:
+        regions["u"] = (rng.uniform(0, 5), rng.uniform(0, 5))
+    planner = MissionPlanner(regions, formula, n_orient=2, w=0.2, start=(2.5, 2.5, 0.0))
+    trace = _follow(planner, rng, 40, perturb=True, urgent_at=7 if urgent else None)
+    # costs settled: the planner is a deterministic finite system; find the cycle
+    seen = {}
+    while trace[-1:] != [None]:
+        key = (planner.node, planner.current, planner.plan().route, planner.plan().suffix)
+        if key in seen:
+            break
+        seen[key] = len(trace)
+        trace += _follow(planner, rng, 1, perturb=False)
+        assert len(trace) < 400, "no cycle"
+    if trace[-1] is None:  # the robot stays in its region for good: the word repeats its letter
+        prefix, cycle = trace[:-1], [planner.node.region]
+    else:
+        start = seen[key]
+        prefix, cycle = trace[:start], trace[start:]
+    assert cycle, trace
+    word = lambda names: [{r} for r in names]  # noqa: E731
+    assert evaluate(formula, word(prefix), word(cycle)), (formula, prefix, cycle)
+    if urgent:
+        assert "u" in trace and planner.pending_urgent == ()
+
+
+def test_commitment_falls_back_to_every_state_when_the_committed_run_has_no_lasso():
+    """``G F b | G F c``: the plans commit to the run that loops through ``b`` (the nearer).
+    When ``b`` becomes unreachable that run has no lasso, but the trace also leads to the
+    ``c`` run's states: the plan comes from those (nothing is blocked that was not before)."""
+    regions = {"a": (0, 0), "b": (1, 0), "c": (0, 3)}
+    p = MissionPlanner(regions, "G F b | G F c", n_orient=1, start="a")
+    for _ in range(6):
+        plan = p.plan()
+        p.advance(next(n.region for n in plan.route + plan.suffix if n.region != p.node.region))
+    committed = {q for _, q in p.current}
+    assert "c" not in p.plan().suffix_regions and p.reachable > committed
+    for r in ("a", "c"):
+        p.remove_edge(r, "b")
+    plan = p.plan()
+    assert "c" in plan.suffix_regions and "b" not in plan.route + plan.suffix
+    assert {q for _, q in p.current} == p.reachable  # the current states are the whole set now
