@@ -789,6 +789,18 @@ def _drive(ex, sim, ticks: int, stop=lambda ex: ex.state is ExecutiveState.DONE)
     return res
 
 
+def test_a_patrol_keeps_every_region_after_an_urgent_request():
+    """``office`` patrolled (``G F p1 & G F d1 & G F d3``) with its urgent ``F u1`` at 60 s: after
+    serving it the robot goes round all three regions again. Planning from the whole set of
+    automaton states let the plans take turns between runs: the robot went between ``p1`` and
+    ``d3`` for good and still counted accepting visits (MissionPlanner, "One run of the
+    automaton")."""
+    r = run_mission(shared_world("office"), "G F p1 & G F d1 & G F d3", max_time=300)
+    _check_run(r)
+    after = r["visited"][r["visited"].index("u1") + 1:]
+    assert all(after.count(name) >= 2 for name in ("p1", "d1", "d3")), r["visited"]
+
+
 def test_an_urgent_request_for_a_new_region_is_served_first_and_the_mission_completes():
     world = shared_world("simple")
     ex = Executive(world, "F a & F b")
