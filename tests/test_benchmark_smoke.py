@@ -152,3 +152,30 @@ def test_executive_benchmark_sweep_reports_every_world_and_refuses_a_bad_range(t
     for bad in ("5:3", "x:4", "4"):
         with pytest.raises(SystemExit):
             exe_bench.main(["--sweep", bad, "--out", str(out)])
+
+
+def test_soak_benchmark_quick_patrols_and_reports_every_window(tmp_path, capsys):
+    """``python -m benchmarks.soak --quick``: four 30 s windows of the patrol of ``simple``, the
+    robot keeps arriving at the accepting state without a collision or a bad command; a bad
+    window is a one-line error."""
+    import pytest
+
+    from benchmarks import soak
+
+    out = tmp_path / "results"
+    assert soak.main(["--quick", "--out", str(out)]) == 0
+    data = json.loads((out / "soak.json").read_text())
+    assert data["benchmark"] == "soak" and data["task"] == "G F a & G F b"
+    rows = data["rows"]
+    assert [r["sim_time"] for r in rows] == [30.0, 60.0, 90.0, 120.0]
+    assert all(r["collisions"] == 0 and r["bad_commands"] == 0 for r in rows)
+    visits = [r["accepting_visits"] for r in rows]
+    assert visits == sorted(visits) and visits[-1] >= 3  # still patrolling in the last window
+    assert all(r["traced_mb"] > 0 and r["tick_p95_ms"] > 0 for r in rows)
+    s = data["summary"]
+    assert s["traced_last_mb"] == rows[-1]["traced_mb"] and s["growth_mb_per_hour"] is not None
+    table = (out / "soak.md").read_text()
+    assert "python -m benchmarks.soak --quick" in table and table.count("\n| ") == 1 + len(rows)
+    assert capsys.readouterr().out.strip() == table.strip()
+    with pytest.raises(SystemExit, match="window"):
+        soak.main(["--world", "simple", "--duration", "10", "--window", "20", "--out", str(out)])
