@@ -173,6 +173,7 @@ class ExecutiveBrain:
         done = ex.state is ExecutiveState.DONE
         recurrent_done = not ex._cosafe and ex.accepting_visits >= 2
         return {"completed": bool(done or recurrent_done), "state": ex.state.value, "task": ex.task,
+                "cosafe": bool(ex._cosafe), "accepting_visits": ex.accepting_visits,
                 "visited": list(ex.visited), "replans": ex.replans, "planning_time": ex.planning_time,
                 "max_replan_time": max(ex.replan_times, default=0.0), "obstacles": len(ex.obstacles),
                 "map_changes": ex.map_changes}

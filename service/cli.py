@@ -116,6 +116,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "service's answer to each pose, never running slower than real time")
     d.add_argument("--seed", type=int, default=0, help="lidar noise seed of the simulator")
     d.add_argument("--json", action="store_true", help="print the summary as one JSON object on stdout")
+    d.add_argument("--keep-going", action="store_true",
+                   help="run until --duration even after the mission completes (a recurrent mission "
+                        "completes after one round of its cycle): a patrol, a soak run")
     return p
 
 
@@ -244,7 +247,7 @@ def _cmd_demo(a) -> int:
             t = n.pose.stamp if n.pose is not None else 0.0
             print(f"[{t:7.1f} s] {st.get('state')}" + (f" -> {st.get('target')}" if st.get("target") else "")
                   + (f"  ({st.get('message')})" if a.verbose and st.get("message") else ""), file=sys.stderr, flush=True)
-        if brain.summary()["completed"]:
+        if brain.summary()["completed"] and not a.keep_going:
             return True
         if n.pose is not None and n.pose.stamp >= a.duration - 1e-9:
             return True
@@ -279,6 +282,7 @@ def _cmd_demo(a) -> int:
     ticks = np.asarray(node.stats.tick_times) * 1e3
     out = {"world": world.name, "task": summary["task"], "completed": summary["completed"],
            "interrupted": stopped.is_set(), "state": summary["state"], "visited": summary["visited"],
+           "accepting_visits": summary.get("accepting_visits"),
            "sim_time": m.get("time"), "wall_time": time.monotonic() - wall0, "sim_waited": m.get("waited"),
            "distance": m.get("distance"),
            "collisions": len(m.get("collisions", [])) if isinstance(m.get("collisions"), list) else m.get("collisions"),
@@ -305,7 +309,9 @@ def _cmd_demo(a) -> int:
         print(f"demo summary ({out['world']}, task {out['task']!r})\n"
               f"  completed      {out['completed']}{' (interrupted)' if out['interrupted'] else ''} "
               f"(state {out['state']})\n"
-              f"  visited        {' '.join(out['visited']) or '-'}\n"
+              f"  visited        {' '.join(out['visited']) or '-'}"
+              + (f" ({out['accepting_visits']} arrivals at the accepting state)" if not summary.get("cosafe", True)
+                 else "") + "\n"
               f"  simulated time {f(out['sim_time'], '.1f')} s in {out['wall_time']:.1f} s wall "
               f"({f(out['sim_waited'], 'd')} steps waited for the service)\n"
               f"  distance       {f(out['distance'], '.2f')} m, collisions {f(out['collisions'], 'd')}, "

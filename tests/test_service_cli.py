@@ -122,6 +122,19 @@ def test_run_stops_cleanly_on_signal(sig):
         cl.close()
 
 
+def test_demo_keep_going_patrols_until_the_duration():
+    """``--keep-going``: a recurrent mission completes after one round of its cycle, and the demo
+    keeps the robot patrolling until ``--duration`` (its summary counts the arrivals)."""
+    proc = _cli("demo", "--world", str(world_file("simple")), "--task", "G F a & G F b", "--speed", "8",
+                "--keep-going", "--duration", "60", "--json", "--prefix", unique_prefix("patrol"))
+    out, err = proc.communicate(timeout=150)
+    assert proc.returncode == 0, err
+    summary = json.loads(out.strip().splitlines()[-1])
+    assert summary["completed"] is True and summary["collisions"] == 0, (summary, err)
+    assert summary["sim_time"] >= 59.0 and summary["accepting_visits"] >= 3, summary
+    assert {"a", "b"} <= set(summary["visited"][-4:]), summary["visited"]
+
+
 def test_demo_mission_of_simple_completes_over_the_bus_with_a_recording(tmp_path):
     rrd = tmp_path / "demo.rrd"
     proc = _cli("demo", "--world", str(world_file("simple")), "--speed", "4", "--record", str(rrd), "--json",
