@@ -59,7 +59,7 @@ def run(world_name: str, task: str, duration: float, window: float) -> dict:
     """The soak run (module doc); returns the rows and the summary."""
     from service.sim import Simulator
     from tamp.executive import Executive
-    from tamp.run import prepare
+    from tamp.run import command_ok, drive, prepare
 
     if not (math.isfinite(duration) and duration > 0 and math.isfinite(window) and 0 < window <= duration):
         raise ValueError(f"need 0 < window <= duration, got window {window!r}, duration {duration!r}")
@@ -68,42 +68,38 @@ def run(world_name: str, task: str, duration: float, window: float) -> dict:
     tracemalloc.start()  # the executive from its construction on, not the kernels prepare() loaded
     ex = Executive(world, task)
     sim = Simulator(world, seed=0)
-    vmax, wmax = ex.control.v_max, ex.control.omega_max
-    period = 1.0 / world.lidar.rate_hz
-    next_scan, mark = 0.0, window
+    mark = window
     ticks: list[float] = []
     bad, replans0, rows = 0, ex.replans, []
     wall0 = time.perf_counter()
+
+    def row() -> None:
+        """The window that ended with the last step."""
+        nonlocal ticks, replans0, mark
+        gc.collect()
+        traced, _peak = tracemalloc.get_traced_memory()
+        t = np.asarray(ticks)
+        m = sim.metrics
+        r = {"sim_time": round(float(sim.time), 3), "wall": time.perf_counter() - wall0,
+             "traced_mb": traced / 1e6, "rss_mb": _rss_mb(),
+             "tick_median_ms": 1e3 * float(np.median(t)), "tick_p95_ms": 1e3 * float(np.percentile(t, 95)),
+             "replans": ex.replans - replans0, "distance": float(m.distance),
+             "accepting_visits": int(ex.accepting_visits), "visits": len(ex.visited),
+             "collisions": len(m.collisions), "bad_commands": bad, "state": ex.state.value,
+             "obstacles": len(ex.obstacles)}
+        rows.append(r)
+        log(f"[soak] {r['sim_time']:7.0f} s sim, {r['wall']:6.0f} s wall: traced {r['traced_mb']:.1f} MB, "
+            f"tick p95 {r['tick_p95_ms']:.1f} ms, {r['accepting_visits']} accepting visits, "
+            f"{r['collisions']} collisions, {r['state']}")
+        ticks, replans0, mark = [], ex.replans, mark + window
+
     try:
-        while sim.time < duration - 1e-9:
-            pose = sim.pose_message()
-            scan = None
-            if sim.time >= next_scan - 1e-9:
-                scan = sim.scan_message()
-                next_scan += period
-            res = ex.tick(pose, scan=scan, now=sim.time)
+        for res, _cpu in drive(ex, sim, duration):
+            if sim.time >= mark - 1e-9:  # this tick starts the next window
+                row()
             ticks.append(res.compute)
-            v, w = res.v, res.omega
-            if not (math.isfinite(v) and math.isfinite(w) and abs(v) <= vmax + 1e-12 and abs(w) <= wmax + 1e-12):
-                bad += 1
-            sim.step((v, w))
-            if sim.time >= mark - 1e-9 or sim.time >= duration - 1e-9:
-                gc.collect()
-                traced, _peak = tracemalloc.get_traced_memory()
-                t = np.asarray(ticks)
-                m = sim.metrics
-                row = {"sim_time": round(float(sim.time), 3), "wall": time.perf_counter() - wall0,
-                       "traced_mb": traced / 1e6, "rss_mb": _rss_mb(),
-                       "tick_median_ms": 1e3 * float(np.median(t)), "tick_p95_ms": 1e3 * float(np.percentile(t, 95)),
-                       "replans": ex.replans - replans0, "distance": float(m.distance),
-                       "accepting_visits": int(ex.accepting_visits), "visits": len(ex.visited),
-                       "collisions": len(m.collisions), "bad_commands": bad, "state": ex.state.value,
-                       "obstacles": len(ex.obstacles)}
-                rows.append(row)
-                log(f"[soak] {row['sim_time']:7.0f} s sim, {row['wall']:6.0f} s wall: traced {row['traced_mb']:.1f} MB, "
-                    f"tick p95 {row['tick_p95_ms']:.1f} ms, {row['accepting_visits']} accepting visits, "
-                    f"{row['collisions']} collisions, {row['state']}")
-                ticks, replans0, mark = [], ex.replans, mark + window
+            bad += not command_ok(res, ex.control)
+        row()  # the last window, up to ``duration``
     finally:
         tracemalloc.stop()
     first, last = rows[0], rows[-1]

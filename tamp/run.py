@@ -28,7 +28,7 @@ from navigation.world import World, load_world
 
 from .executive import Executive, ExecutiveConfig, ExecutiveState
 
-__all__ = ["run_mission", "main", "prepare", "OMEGA_DEADBAND"]
+__all__ = ["run_mission", "drive", "command_ok", "main", "prepare", "OMEGA_DEADBAND"]
 
 OMEGA_DEADBAND = 0.05  #: |omega| below this (rad/s) does not count for the oscillation measure
 
@@ -66,6 +66,32 @@ def _oscillation(omegas, distance: float) -> float:
     s = np.sign(w[np.abs(w) > OMEGA_DEADBAND])
     flips = int(np.count_nonzero(s[1:] != s[:-1])) if len(s) > 1 else 0
     return flips / distance if distance > 1e-9 else 0.0
+
+
+def drive(ex: Executive, sim, max_time: float):
+    """Tick ``ex`` in the simulator ``sim`` until ``max_time`` simulated seconds: the pose at
+    every step, a scan at the lidar rate. Yields ``(result, cpu)`` (the tick's
+    :class:`~tamp.executive.TickResult` and its process-CPU seconds) before the simulator steps
+    with the tick's command; a caller that stops early leaves that command unexecuted."""
+    period = 1.0 / sim.world.lidar.rate_hz
+    next_scan = 0.0
+    while sim.time < max_time - 1e-9:
+        pose = sim.pose_message()
+        scan = None
+        if sim.time >= next_scan - 1e-9:
+            scan = sim.scan_message()
+            next_scan += period
+        c0 = time.process_time()
+        res = ex.tick(pose, scan=scan, now=sim.time)
+        yield res, time.process_time() - c0
+        sim.step((res.v, res.omega))
+
+
+def command_ok(res, control) -> bool:
+    """Whether a tick's command is finite and within ``control``'s speed and turn-rate limits."""
+    v, w = res.v, res.omega
+    return (math.isfinite(v) and math.isfinite(w) and abs(v) <= control.v_max + 1e-12
+            and abs(w) <= control.omega_max + 1e-12)
 
 
 def run_mission(world, task: str | None = None, known: bool = False, seed: int = 0, max_time: float = 300.0,
@@ -130,26 +156,16 @@ def run_mission(world, task: str | None = None, known: bool = False, seed: int =
     cfg = config or ExecutiveConfig()
     ex = executive_cls(world, task, known=known, config=cfg)
     sim = Simulator(world, seed=seed)
-    period = 1.0 / world.lidar.rate_hz
-    next_scan = 0.0
     ticks, cpu, omegas, poses, commands, targets, replanned = [], [], [], [], [], [], []
     bad = 0
     last = None
     blocked_since = None
-    vmax, wmax = ex.control.v_max, ex.control.omega_max
     completed = False
-    while sim.time < max_time - 1e-9:
-        pose = sim.pose_message()
-        scan = None
-        if sim.time >= next_scan - 1e-9:
-            scan = sim.scan_message()
-            next_scan += period
-        c0 = time.process_time()
-        res = ex.tick(pose, scan=scan, now=sim.time)
-        cpu.append(time.process_time() - c0)
+    for res, dt in drive(ex, sim, max_time):
+        cpu.append(dt)
         ticks.append(res.compute)
         v, w = res.v, res.omega
-        if not (math.isfinite(v) and math.isfinite(w) and abs(v) <= vmax + 1e-12 and abs(w) <= wmax + 1e-12):
+        if not command_ok(res, ex.control):
             bad += 1
         key = (res.status["state"], res.status["target"])
         if progress is not None and key != last:
@@ -175,7 +191,6 @@ def run_mission(world, task: str | None = None, known: bool = False, seed: int =
             commands.append((v, w))
             targets.append(res.status["waypoint"])
             replanned.append(bool(res.replanned))
-        sim.step((v, w))
     m = sim.metrics
     rt = ex.replan_times
     t = np.asarray(ticks) if ticks else np.zeros(1)
