@@ -43,7 +43,9 @@ is timed with the memos (forest results, LTL translation) that the missions befo
 (seeds the benchmark and the tests were not developed on; nominal start poses, ``--jobs N``
 processes, not timed) and reports the missions that did not complete or touched an obstacle,
 with their state and message, and the distance ratios; results ``<out>/executive_sweep.json``
-and ``.md``.
+and ``.md``. With ``--patrol`` the missions are recurrent instead (``G F`` every region; a
+mission completes after one round of its cycle, as :func:`tamp.run.run_mission` counts), and a
+mission that did not visit every region at least twice counts as failed too.
 
 Results: ``<out>/executive.json`` and ``<out>/executive.md`` (also printed); progress on stderr.
 """
@@ -95,12 +97,12 @@ def full_knowledge_tour(world, sequence) -> float | None:
     return total
 
 
-def _world(name: str):
+def _world(name: str, patrol: bool = False):
     if name.startswith("random"):
         from tests.worldgen import random_forest_world
 
         w = random_forest_world(int(name[len("random"):]), gap=0.3)
-        return w, " & ".join(f"F {r}" for r in w.regions)
+        return w, " & ".join(f"{'G F' if patrol else 'F'} {r}" for r in w.regions)
     return navigation.load_world(name), None
 
 
@@ -123,14 +125,17 @@ def jittered_start(world, k: int, *, sigma: float = 0.005, sigma_theta: float = 
 def _untimed_run(job) -> dict:
     """One mission, untimed (the jittered runs and the sweep): from start pose ``k`` of
     :func:`jittered_start`, or from the world's own start pose when ``k`` is 0."""
-    name, k, max_time, config = job
-    world, task = _world(name)
+    name, k, max_time, config, patrol = job
+    world, task = _world(name, patrol)
     if k:
         world = jittered_start(world, k)
     r = run_mission(world, task, max_time=max_time, config=config)
     tour, ratio = _tour_ratio(world, r)
-    return {"world": name, "k": k, "tour": tour, "ratio": ratio, **{key: r[key] for key in (
+    out = {"world": name, "k": k, "tour": tour, "ratio": ratio, **{key: r[key] for key in (
         "completed", "collisions", "distance", "execution_time", "state", "message", "visited")}}
+    if patrol:  # went round: every region at least twice (the prefix and one round of the cycle)
+        out["every_region_twice"] = all(r["visited"].count(n) >= 2 for n in world.regions)
+    return out
 
 
 def _log_untimed(_job, r: dict) -> None:
@@ -153,38 +158,45 @@ def _within(r: dict) -> bool:
 def run_jitter(names: Sequence[str], runs: int, max_time: float = 300.0, config: ExecutiveConfig | None = None,
                jobs: int = 1) -> list[dict]:
     """``runs`` missions per world from jittered start poses (module doc)."""
-    todo = [(name, k, max_time, config) for name in names for k in range(1, runs + 1)]
+    todo = [(name, k, max_time, config, False) for name in names for k in range(1, runs + 1)]
     return isolated_map(_untimed_run, todo, jobs, _log_untimed)
 
 
 def run_sweep(seeds: Sequence[int], max_time: float = 300.0, config: ExecutiveConfig | None = None,
-              jobs: int = 1) -> dict:
+              jobs: int = 1, patrol: bool = False) -> dict:
     """The nominal missions of the random worlds ``seeds`` in ``jobs`` processes, untimed
-    (module doc, ``--sweep``)."""
-    rows = isolated_map(_untimed_run, [(f"random{s}", 0, max_time, config) for s in seeds], jobs, _log_untimed)
+    (module doc, ``--sweep``; recurrent missions with ``patrol``)."""
+    rows = isolated_map(_untimed_run, [(f"random{s}", 0, max_time, config, patrol) for s in seeds], jobs,
+                        _log_untimed)
     return {"machine": machine_info(), "seeds": [int(seeds[0]), int(seeds[-1]) + 1] if len(seeds) else [],
-            "rows": rows}
+            "patrol": bool(patrol), "rows": rows}
 
 
 def render_sweep(result: dict) -> str:
     rows = result["rows"]
-    bad = [r for r in rows if not r["completed"] or r["collisions"]]
+    patrol = result.get("patrol", False)
+    bad = [r for r in rows if not r["completed"] or r["collisions"] or not r.get("every_region_twice", True)]
     ratios = np.array([r["ratio"] for r in rows if r["ratio"] is not None])
     a, b = result["seeds"] or (0, 0)
     lines = ["# Executive: robustness sweep over random worlds", "",
-             f"Command: `python -m benchmarks.executive --sweep {a}:{b}` (nominal start poses, every obstacle "
-             "unknown, at most 300 simulated s per mission).", "",
+             f"Command: `python -m benchmarks.executive --sweep {a}:{b}{' --patrol' if patrol else ''}` (nominal "
+             "start poses, every obstacle unknown, at most 300 simulated s per mission"
+             + ("; missions `G F` every region" if patrol else "") + ").", "",
              f"Completed {sum(r['completed'] for r in rows)}/{len(rows)}, collisions "
              f"{sum(r['collisions'] for r in rows)}, total distance {sum(r['distance'] for r in rows):.1f} m, "
-             f"total time {sum(r['execution_time'] for r in rows):.0f} s."]
+             f"total time {sum(r['execution_time'] for r in rows):.0f} s."
+             + (f" Every region visited at least twice: {sum(r['every_region_twice'] for r in rows)}/{len(rows)}."
+                if patrol else "")]
     if len(ratios):
         lines.append(f"Distance / full-knowledge tour: median {np.median(ratios):.3f}, p90 "
                      f"{np.percentile(ratios, 90):.3f}, max {ratios.max():.2f}; within 1.25 x: "
                      f"{int((ratios <= 1.25).sum())}/{len(ratios)}.")
     if bad:
-        lines += ["", "| world | completed | collisions | state | message |", "|---|---|---:|---|---|"]
-        lines += [f"| {r['world']} | {'yes' if r['completed'] else 'no'} | {r['collisions']} | {r['state']} | "
-                  f"{r['message'][:200]} |" for r in bad]
+        lines += ["", "| world | completed | collisions | every region twice | state | message |",
+                  "|---|---|---:|---|---|---|"]
+        lines += [f"| {r['world']} | {'yes' if r['completed'] else 'no'} | {r['collisions']} | "
+                  f"{('yes' if r['every_region_twice'] else 'no') if 'every_region_twice' in r else '-'} | "
+                  f"{r['state']} | {r['message'][:200]} |" for r in bad]
     lines += ["", f"Machine: {result['machine']}"]
     return "\n".join(lines) + "\n"
 
@@ -329,9 +341,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                         help="ExecutiveConfig override (VALUE in JSON), repeatable")
     parser.add_argument("--sweep", metavar="A:B", help="instead: robustness sweep over random worlds A .. B-1")
+    parser.add_argument("--patrol", action="store_true", help="with --sweep: recurrent missions (G F every region)")
     args = parser.parse_args(argv)
     if args.jitter < 0 or args.jobs < 1:
         parser.error("--jitter must be >= 0 and --jobs >= 1")
+    if args.patrol and args.sweep is None:
+        parser.error("--patrol goes with --sweep A:B")
     sweep = None
     if args.sweep is not None:
         try:
@@ -347,7 +362,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except Exception as err:  # the config's own validation (TampError): one line, exit 2
         raise SystemExit(f"python -m benchmarks.executive: {err}") from None
     if sweep is not None:
-        result = run_sweep(sweep, args.max_time, config, args.jobs)
+        result = run_sweep(sweep, args.max_time, config, args.jobs, args.patrol)
         if over:
             result["config"] = {k: dataclasses.asdict(v) if dataclasses.is_dataclass(v) else v for k, v in over.items()}
         write_results(args.out, "executive_sweep", result, render_sweep(result))

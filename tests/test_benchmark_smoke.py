@@ -152,6 +152,15 @@ def test_executive_benchmark_sweep_reports_every_world_and_refuses_a_bad_range(t
     for bad in ("5:3", "x:4", "4"):
         with pytest.raises(SystemExit):
             exe_bench.main(["--sweep", bad, "--out", str(out)])
+    # --patrol: recurrent missions, each going round every region (once more after the prefix)
+    assert exe_bench.main(["--sweep", "3:5", "--patrol", "--jobs", "2", "--out", str(out)]) == 0
+    data = json.loads((out / "executive_sweep.json").read_text())
+    assert data["patrol"] is True
+    assert all(r["completed"] and r["collisions"] == 0 and r["every_region_twice"] for r in data["rows"])
+    table = (out / "executive_sweep.md").read_text()
+    assert "--sweep 3:5 --patrol" in table and "Every region visited at least twice: 2/2" in table
+    with pytest.raises(SystemExit):
+        exe_bench.main(["--patrol", "--out", str(out)])  # only with --sweep
 
 
 def test_soak_benchmark_quick_patrols_and_reports_every_window(tmp_path, capsys):
