@@ -247,3 +247,17 @@ def test_unsatisfiable_formulas_have_no_accepting_state(text):
     assert not aut.accepting, f"{text}: accepting states {sorted(aut.accepting)}"
     for u, v in word_sample(SEED, -1, 20):
         assert not evaluate(text, u, v)
+
+
+def test_every_memo_of_the_translator_is_bounded():
+    """A long-running service translates every mission it is sent; formulas are hash-consed and
+    a memo keeps its keys alive, so an unbounded memo grew with the number of distinct missions
+    (about 3.5 KB each). Every ``lru_cache`` of the LTL modules has a finite size."""
+    import tamp.ltl.rewrite as rewrite
+    import tamp.ltl.translate as translate
+
+    memos = [(m.__name__, name, obj) for m in (rewrite, translate) for name, obj in vars(m).items()
+             if hasattr(obj, "cache_info")]
+    assert len(memos) >= 6
+    for mod, name, obj in memos:
+        assert obj.cache_info().maxsize == rewrite.MEMO_SIZE, (mod, name)

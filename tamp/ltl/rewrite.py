@@ -44,16 +44,20 @@ __all__ = [
 ]
 
 _MAX_IMPLIES_DEPTH = 12
+#: entries each memo of a pure function keeps (least recently used first out): formulas are
+#: hash-consed and a memo keeps its keys alive, so an unbounded one grew by about 3.5 KB per
+#: distinct mission a long-running service was sent (thirty-third session)
+MEMO_SIZE = 4096
 
 
 def _key(f: Formula):
     return (f.size, str(f))
 
 
-sort_key = lru_cache(maxsize=None)(_key)
+sort_key = lru_cache(maxsize=MEMO_SIZE)(_key)
 
 
-@lru_cache(maxsize=None)
+@lru_cache(maxsize=MEMO_SIZE)
 def _implies(f: Formula, g: Formula, depth: int) -> bool:
     if f is g or g is TRUE or f is FALSE:
         return True
@@ -262,7 +266,7 @@ def mk_release(a: Formula, b: Formula) -> Formula:
     return Formula("R", (a, b))
 
 
-@lru_cache(maxsize=None)
+@lru_cache(maxsize=MEMO_SIZE)
 def _nnf(f: Formula, neg: bool) -> Formula:
     op = f.op
     if op == "true":
@@ -323,7 +327,7 @@ def nnf(f: Formula) -> Formula:
 simplify = nnf
 
 
-@lru_cache(maxsize=None)
+@lru_cache(maxsize=MEMO_SIZE)
 def is_cosafe(f: Formula) -> bool:
     """Syntactically co-safe NNF: only literals, constants, ``& | X F U`` (a guarantee
     property: every satisfying word has a finite good prefix)."""
@@ -334,7 +338,7 @@ def is_cosafe(f: Formula) -> bool:
     return all(is_cosafe(a) for a in f.args)
 
 
-@lru_cache(maxsize=None)
+@lru_cache(maxsize=MEMO_SIZE)
 def is_safe(f: Formula) -> bool:
     """Syntactically safe NNF: only literals, constants, ``& | X G R`` (every violating word
     has a finite bad prefix)."""

@@ -45,7 +45,7 @@ from ._graph import reachable, strongly_connected_components
 from .automaton import Buchi, Edge
 from .bdd import Bdd, from_minterms
 from .formula import FALSE, TRUE, Formula
-from .rewrite import implies, is_cosafe, is_safe, negate, simplify, sort_key
+from .rewrite import MEMO_SIZE, implies, is_cosafe, is_safe, negate, simplify, sort_key
 from .syntax import FormulaLike, parse
 
 __all__ = ["to_buchi", "EXPLICIT_ALPHABET_MAX_APS"]
@@ -122,7 +122,7 @@ class _Tableau:
         return out
 
 
-@lru_cache(maxsize=None)
+@lru_cache(maxsize=MEMO_SIZE)
 def _has_eventuality(f: Formula) -> bool:
     return f.op in ("U", "F") or any(_has_eventuality(a) for a in f.args)
 
