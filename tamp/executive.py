@@ -765,7 +765,9 @@ class Executive:
         self._tracker = Tracker(self.control, cfg.crawl_guard, route=self._rescue_route if cfg.route_rescue else None,
                                 route_tolerance=cfg.waypoint_tolerance)
         self.rescues = 0  # routes the tracker asked for (ExecutiveConfig.route_rescue)
-        self._rescued = None  # (leg id, waypoint index) the watchdog last answered with a route
+        # (leg, waypoint index) the watchdog last answered with a route: the leg itself, not its
+        # id(), which a later leg can reuse once this one is freed
+        self._rescued = None
         self.cspace_workspace, _ = configuration_space(world.workspace, (), r)
         self.messages: list[str] = []
         self.message = ""
@@ -1822,12 +1824,12 @@ class Executive:
             return
         if self.time - prog[3] >= cfg.stuck_time and d > cfg.waypoint_tolerance:
             self._progress = (self.leg, self.wp, d, self.time)
-            key = (id(self.leg), self.wp)
-            if cfg.route_rescue and self._rescued != key:
+            done = self._rescued is not None and self._rescued[0] is self.leg and self._rescued[1] == self.wp
+            if cfg.route_rescue and not done:
                 # first time on this waypoint: follow a harmonic tree to it along its segments
                 cur = self._field(self.leg[self.wp])
                 if cur is not None and self._tracker.rescue(self.time, self._pose, cur):
-                    self._rescued = key
+                    self._rescued = (self.leg, self.wp)
                     self._note(f"no progress towards the waypoint {d:.2f} m away for {cfg.stuck_time:g} s: "
                                "following a harmonic tree to it")
                     return

@@ -281,7 +281,7 @@ def _invalidated(cyc: _Cycle, changes: Mapping[int, tuple[float, float]], N: int
 
 
 # ---- mission bookkeeping ---------------------------------------------------------------------
-@dataclass
+@dataclass(eq=False)  # identity: the plan cache's key holds the mission itself
 class _Mission:
     text: str
     buchi: Buchi
@@ -295,7 +295,7 @@ def _new_mission(text: str, buchi: Buchi, navmap: NavigationMap, letters: frozen
     return _Mission(text, buchi, Product(navmap, buchi), letters, done=ops.universal_states(buchi, letters))
 
 
-@dataclass
+@dataclass(eq=False)  # identity, as _Mission
 class _Urgent:
     text: str
     buchi: Buchi
@@ -785,8 +785,9 @@ class MissionPlanner:
         self._plan_key = self._key()
 
     def _key(self):
-        return (self.navmap.version, self._node, self._states, id(self._mission),
-                tuple((id(u), u.states) for u in self._urgent))
+        # the objects themselves, not their id(): a later mission could reuse a freed one's id
+        return (self.navmap.version, self._node, self._states, self._mission,
+                tuple((u, u.states) for u in self._urgent))
 
     # ---- planning -------------------------------------------------------------------------
     def plan(self, current: Iterable[tuple] | None = None) -> Plan:
