@@ -167,13 +167,9 @@ class ExecutiveBrain:
         return self._ex.obstacles
 
     def summary(self) -> dict:
-        from tamp.executive import ExecutiveState
-
         ex = self._ex
-        done = ex.state is ExecutiveState.DONE
-        recurrent_done = not ex._cosafe and ex.accepting_visits >= 2
-        return {"completed": bool(done or recurrent_done), "state": ex.state.value, "task": ex.task,
-                "cosafe": bool(ex._cosafe), "accepting_visits": ex.accepting_visits,
+        return {"completed": ex.completed, "state": ex.state.value, "task": ex.task,
+                "cosafe": not ex.recurrent, "accepting_visits": ex.accepting_visits,
                 "visited": list(ex.visited), "replans": ex.replans, "planning_time": ex.planning_time,
                 "max_replan_time": max(ex.replan_times, default=0.0), "obstacles": len(ex.obstacles),
                 "map_changes": ex.map_changes}

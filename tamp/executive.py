@@ -838,7 +838,6 @@ class Executive:
         self._arrived = self._at_region is not None
         #: arrivals at the accepting state of the plan's lasso (recurrent missions)
         self.accepting_visits = 0
-        self._cosafe = self._universal()
         self.unreachable: tuple[str, ...] = ()  #: regions named by the last blocked report
         self.message = ""
         self.time = 0.0
@@ -888,7 +887,6 @@ class Executive:
         if staged is not None:
             self._commit_regions(staged)
         self.task = self.planner.mission
-        self._cosafe = self._universal()
         self.accepting_visits = 0
         if self.state in (ExecutiveState.DONE, ExecutiveState.BLOCKED):
             self.state = ExecutiveState.PLANNING
@@ -1080,7 +1078,6 @@ class Executive:
             self._at_region = None
         if self.omap is not None:  # perception keeps the region discs free
             self.omap.regions = [(np.asarray(reg.center, dtype=float), float(reg.radius)) for reg in new.values()]
-        self._cosafe = self._universal()
         if self.state in (ExecutiveState.DONE, ExecutiveState.BLOCKED):
             self.state = ExecutiveState.PLANNING
         self._need_plan = True
@@ -1233,14 +1230,22 @@ class Executive:
                         del store[key]
 
     # ------------------------------------------------------------------ progress
-    def _universal(self):
-        return self.planner.done_states
+    @property
+    def recurrent(self) -> bool:
+        """The mission has no universal state (it is never done for good: a patrol)."""
+        return not self.planner.done_states
+
+    @property
+    def completed(self) -> bool:
+        """The mission is done, or, recurrent, its accepting state was reached twice (one round
+        of its cycle): what :func:`tamp.run.run_mission` and the service's summary report."""
+        return self.state is ExecutiveState.DONE or (self.recurrent and self.accepting_visits >= 2)
 
     def _mission_done(self) -> bool:
         if self.planner.pending_urgent:
             return False
         states = {q for _, q in self.planner.current}
-        return bool(states & self._cosafe)
+        return bool(states & self.planner.done_states)
 
     def _track_regions(self, p) -> None:
         q = np.array(p[:2])

@@ -172,10 +172,7 @@ def run_mission(world, task: str | None = None, known: bool = False, seed: int =
             progress(f"[{sim.time:6.1f} s] {key[0]}" + (f" -> {key[1]}" if key[1] else "")
                      + (f": {res.status['message']}" if res.status["message"] and key[0] != "executing" else ""))
         last = key
-        if ex.state is ExecutiveState.DONE:
-            completed = True
-            break
-        if not ex._cosafe and ex.accepting_visits >= 2:
+        if ex.completed:
             completed = True
             break
         if ex.state is ExecutiveState.BLOCKED:
@@ -223,8 +220,8 @@ def run_mission(world, task: str | None = None, known: bool = False, seed: int =
         "map_changes": ex.map_changes,
         "trees_planned": ex.trees_planned,
         "guard_stops": ex.guard_stops,
-        "gap_searches": int(getattr(ex, "gap_searches", 0)),
-        "looks": int(getattr(ex, "looks", 0)),
+        "gap_searches": ex.gap_searches,
+        "looks": ex.looks,
         "obstacles": len(ex.obstacles),
         "messages": ex.messages[-20:],
     }
