@@ -791,9 +791,9 @@ class Executive:
         self.weights = RotationWeights()
         self.weight_fits = 0  #: refits of the rotation weights so far
         # traversed edges: translation d, rotation terms Q (eq. 26), measured cost v_max * dt
-        self._edges_d: deque[float] = deque(maxlen=cfg.refit_window)
-        self._edges_q: deque[tuple[float, float]] = deque(maxlen=cfg.refit_window)
-        self._edges_cost: deque[float] = deque(maxlen=cfg.refit_window)
+        # the traversed edges of the weight refit, one row each: translation d, rotation
+        # terms Q (two), measured cost gamma* (section 4.2.3, step III)
+        self._edges: deque[tuple[float, float, float, float]] = deque(maxlen=cfg.refit_window)
         self._edge_t0: float | None = None  # when the robot left the current edge's start
         # the obstacle model by key: ("known", index) and ("estimate", perception id)
         self._model: dict = {("known", i): o for i, o in enumerate(known_obs)}
@@ -1981,17 +1981,17 @@ class Executive:
         dt = self.time - t0
         if not (d > 0 and dt > 0 and math.isfinite(dt)):
             return
-        self._edges_d.append(d)
-        self._edges_q.append(tuple(float(x) for x in rotation_terms(a[:2], a[2], b[:2], b[2])))
-        self._edges_cost.append(self.control.v_max * dt)
-        if len(self._edges_d) >= self.config.refit_min_edges:
+        q1, q2 = (float(x) for x in rotation_terms(a[:2], a[2], b[:2], b[2]))
+        self._edges.append((d, q1, q2, self.control.v_max * dt))
+        if len(self._edges) >= self.config.refit_min_edges:
             self._refit_weights()
 
     def _refit_weights(self) -> None:
         """Least-squares weights over the traversed edges (section 4.2.3, step III), then the
         map costs of every evaluated tree under them."""
         try:
-            w = RotationWeights.fit(self._edges_d, np.array(self._edges_q), self._edges_cost)
+            rows = np.array(self._edges)
+            w = RotationWeights.fit(rows[:, 0], rows[:, 1:3], rows[:, 3])
         except TampError:
             return  # Q^T Q singular so far: keep the current weights
         lo, hi = self.config.weight_bounds

@@ -692,10 +692,11 @@ def test_rotation_weights_refit_during_a_mission(window):
     _check_run(run_mission(shared_world("cluttered20"), max_time=300, executive_cls=Recording, config=config))
     ex = runs[0]
     lo, hi = ex.config.weight_bounds
-    assert ex.weight_fits >= 1 and len(ex._edges_d) >= ex.config.refit_min_edges
+    assert ex.weight_fits >= 1 and len(ex._edges) >= ex.config.refit_min_edges
     if window is not None:
-        assert len(ex._edges_d) == len(ex._edges_q) == len(ex._edges_cost) == window
-    fit = RotationWeights.fit(ex._edges_d, np.array(ex._edges_q), ex._edges_cost)
+        assert len(ex._edges) == window
+    rows = np.array(ex._edges)
+    fit = RotationWeights.fit(rows[:, 0], rows[:, 1:3], rows[:, 3])
     assert (ex.weights.w1, ex.weights.w2) == pytest.approx((min(max(fit.w1, lo), hi), min(max(fit.w2, lo), hi)))
 
 
