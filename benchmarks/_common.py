@@ -2,15 +2,18 @@
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 import platform
+import statistics
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["isolated_map", "log", "machine_info", "verdict", "write_results"]
+__all__ = ["isolated_map", "log", "machine_info", "machine_speed", "verdict", "write_results"]
 
 
 def log(msg: str) -> None:
@@ -19,10 +22,46 @@ def log(msg: str) -> None:
 
 
 def machine_info() -> dict:
-    """Python, numpy, platform, CPU count and load average (where the OS reports it)."""
+    """Python, numpy, platform, CPU count, load average (where the OS reports it) and the
+    machine's speed on two fixed workloads (:func:`machine_speed`)."""
     return {"python": platform.python_version(), "numpy": np.__version__, "platform": platform.platform(),
             "cpus": os.cpu_count(),
-            "load_average": list(os.getloadavg()) if hasattr(os, "getloadavg") else None}
+            "load_average": list(os.getloadavg()) if hasattr(os, "getloadavg") else None,
+            "speed": machine_speed()}
+
+
+@functools.cache
+def machine_speed() -> dict:
+    """Milliseconds this machine takes for two fixed workloads (median of 5), so that times
+    measured on different machines can be compared: ``python_ms``, interpreted Python (dict
+    and list work); ``numpy_small_ms``, 4000 numpy calls on arrays of 64 points (the size of
+    the executive's per-tick work, whose cost is mostly per-call overhead). Measured once per
+    process, when first asked (on a machine busy with other work it reads slow)."""
+
+    def python_work():
+        d = {}
+        for i in range(60_000):
+            d[i % 997] = d.get(i % 997, 0) + i
+        return sorted(d.values())[-1]
+
+    pts = np.random.default_rng(0).random((64, 2))
+
+    def numpy_work():
+        acc = 0.0
+        for _ in range(1000):
+            r = np.hypot(pts[:, 0], pts[:, 1])
+            acc += float(r.min()) + float(np.sum(pts * pts))
+        return acc
+
+    def median_ms(fn):
+        times = []
+        for _ in range(5):
+            t = time.perf_counter()
+            fn()
+            times.append(1e3 * (time.perf_counter() - t))
+        return round(statistics.median(times), 2)
+
+    return {"python_ms": median_ms(python_work), "numpy_small_ms": median_ms(numpy_work)}
 
 
 def verdict(row: dict, key: str) -> str:

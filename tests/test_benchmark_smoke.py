@@ -18,7 +18,9 @@ def test_benchmark_quick_writes_results(tmp_path, capsys):
     data = json.loads((out / "navigation.json").read_text())
     assert data["benchmark"] == "navigation" and data["quick"] is True
     assert set(data["targets"]) == {"construction", "update", "one_point", "batch_10k", "grid_200"}
-    assert {"python", "numpy", "platform", "cpus"} <= set(data["machine"])
+    assert {"python", "numpy", "platform", "cpus", "speed"} <= set(data["machine"])
+    speed = data["machine"]["speed"]
+    assert set(speed) == {"python_ms", "numpy_small_ms"} and all(v > 0 for v in speed.values())
     (row,) = data["worlds"]
     assert row["world"] == "random5" and row["n_obstacles"] == 5 and row["max_depth"] == 4
     for key in METRICS:
