@@ -790,9 +790,8 @@ class Executive:
         self.task = self.planner.mission
         self.weights = RotationWeights()
         self.weight_fits = 0  #: refits of the rotation weights so far
-        # traversed edges: translation d, rotation terms Q (eq. 26), measured cost v_max * dt
-        # the traversed edges of the weight refit, one row each: translation d, rotation
-        # terms Q (two), measured cost gamma* (section 4.2.3, step III)
+        # the weight refit's traversed edges, one row each (section 4.2.3, step III):
+        # translation d, the two rotation terms Q (eq. 26), measured cost gamma* = v_max * dt
         self._edges: deque[tuple[float, float, float, float]] = deque(maxlen=cfg.refit_window)
         self._edge_t0: float | None = None  # when the robot left the current edge's start
         # the obstacle model by key: ("known", index) and ("estimate", perception id)
