@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["isolated_map", "log", "machine_info", "machine_speed", "verdict", "write_results"]
+__all__ = ["isolated_map", "load_average", "log", "machine_info", "machine_speed", "verdict", "write_results"]
 
 
 def log(msg: str) -> None:
@@ -26,8 +26,12 @@ def machine_info() -> dict:
     machine's speed on two fixed workloads (:func:`machine_speed`)."""
     return {"python": platform.python_version(), "numpy": np.__version__, "platform": platform.platform(),
             "cpus": os.cpu_count(),
-            "load_average": list(os.getloadavg()) if hasattr(os, "getloadavg") else None,
-            "speed": machine_speed()}
+            "load_average": load_average(), "speed": machine_speed()}
+
+
+def load_average() -> list | None:
+    """The OS's 1, 5 and 15 minute load averages, or ``None`` where it does not report them."""
+    return list(os.getloadavg()) if hasattr(os, "getloadavg") else None
 
 
 @functools.cache

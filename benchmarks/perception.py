@@ -52,7 +52,7 @@ from pathlib import Path
 import numpy as np
 
 import navigation
-from benchmarks._common import _prepare, log, machine_info, verdict, write_results
+from benchmarks._common import _prepare, load_average, log, machine_info, verdict, write_results
 from perception import ObstacleMap
 from perception.evaluation import drive, score, tour
 from service.sim import LidarConfig, Simulator
@@ -89,7 +89,7 @@ def bench_world(name: str, noise: float, goals: int, seed: int = 11) -> dict:
         "median": float(np.median(t)), "p95": float(np.percentile(t, 95)), "max": float(t.max()),
         "mean": float(t.mean()), "changed": float(np.mean([u.changed for u in res.updates])),
         "cpu_median": float(np.median(res.cpu_times)), "cpu_p95": float(np.percentile(res.cpu_times, 95)),
-        "load_average": machine_info().get("load_average"),
+        "load_average": load_average(),
         "safety": sc.safety, "scan_safety": sc.scan_safety, "robot_covered": sc.robot_covered,
         "estimates": sc.estimates, "groups_seen": sc.groups_seen, "iou": sc.iou,
         "iou_mean": float(np.mean(sc.iou)) if sc.iou else None,
