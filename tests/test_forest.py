@@ -3,8 +3,6 @@ exact distances, and the rules of the forest of stars (paper 001 section 4.1.2).
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 
@@ -509,23 +507,18 @@ class TestRandomWorlds:
         again = random_free_points(w, 200, np.random.default_rng(0), margin=0.1)
         assert np.array_equal(pts, again)
 
-    def test_build_time_for_twenty_obstacles(self):
+    def test_twenty_obstacles(self):
+        # (its build time is measured by ``python -m benchmarks.navigation``, not asserted here)
         w = random_forest_world(1, n_obstacles=20)
-        t0 = time.perf_counter()
-        build_forest(w.workspace, w.obstacles)
-        assert time.perf_counter() - t0 < 2.0  # typically ~0.2 s; generous for loaded CI machines
+        f = build_forest(w.workspace, w.obstacles)
+        check_invariants(f, max_depth=5)
 
 
 @pytest.mark.slow
 def test_fifty_obstacles():
-    t0 = time.perf_counter()
     w = random_forest_world(0, n_obstacles=50)
-    generated = time.perf_counter() - t0
     assert (w.workspace.width, w.workspace.height) == (10.0, 10.0)
-    t0 = time.perf_counter()
     f = build_forest(w.workspace, w.obstacles)
-    assert time.perf_counter() - t0 < 5.0
-    assert generated < 20.0
     check_invariants(f, max_depth=5)
     check_geometry(f, samples=128)
 
