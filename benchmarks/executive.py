@@ -3,8 +3,8 @@
 Run from the repository root::
 
     python -m benchmarks.executive [--quick] [--random 10] [--out benchmarks/results]
-                                   [--jitter K] [--jobs N] [--set NAME=VALUE ...]
-    python -m benchmarks.executive --sweep 100:400 [--jobs N] [--set ...]
+                                   [--jitter K] [--jobs N] [--set NAME=VALUE ...] [--noise SIGMA]
+    python -m benchmarks.executive --sweep 100:400 [--jobs N] [--set ...] [--noise SIGMA]
 
 For the shared worlds (``simple``, ``office``, ``cluttered20``; their own missions, office with
 its urgent event) and random forest worlds (``tests/worldgen.py`` seeds ``0 .. N-1`` with
@@ -46,6 +46,11 @@ with their state and message, and the distance ratios; results ``<out>/executive
 and ``.md``. With ``--patrol`` the missions are recurrent instead (``G F`` every region; a
 mission completes after one round of its cycle, as :func:`tamp.run.run_mission` counts), and a
 mission that did not visit every region at least twice counts as failed too.
+
+``--noise SIGMA`` gives every mission's lidar a range noise of standard deviation ``SIGMA`` m
+(every world here has noise-free lidar; the simulator's seed is 0, so a run is repeatable), and
+perception is configured for it as for a world file that says so
+(``PerceptionConfig.from_lidar``): the same missions with a realistic sensor.
 
 Results: ``<out>/executive.json`` and ``<out>/executive.md`` (also printed); progress on stderr.
 """
@@ -97,13 +102,19 @@ def full_knowledge_tour(world, sequence) -> float | None:
     return total
 
 
-def _world(name: str, patrol: bool = False):
+def _world(name: str, patrol: bool = False, noise: float | None = None):
+    """The world ``name`` and its mission (``None``: the world file's own); with ``noise``, its
+    lidar's range noise (standard deviation, m) replaced."""
     if name.startswith("random"):
         from tests.worldgen import random_forest_world
 
         w = random_forest_world(int(name[len("random"):]), gap=0.3)
-        return w, " & ".join(f"{'G F' if patrol else 'F'} {r}" for r in w.regions)
-    return navigation.load_world(name), None
+        task = " & ".join(f"{'G F' if patrol else 'F'} {r}" for r in w.regions)
+    else:
+        w, task = navigation.load_world(name), None
+    if noise is not None:
+        w = dataclasses.replace(w, lidar=dataclasses.replace(w.lidar, noise_std=float(noise)))
+    return w, task
 
 
 def jittered_start(world, k: int, *, sigma: float = 0.005, sigma_theta: float = 0.01):
@@ -125,8 +136,8 @@ def jittered_start(world, k: int, *, sigma: float = 0.005, sigma_theta: float = 
 def _untimed_run(job) -> dict:
     """One mission, untimed (the jittered runs and the sweep): from start pose ``k`` of
     :func:`jittered_start`, or from the world's own start pose when ``k`` is 0."""
-    name, k, max_time, config, patrol = job
-    world, task = _world(name, patrol)
+    name, k, max_time, config, patrol, noise = job
+    world, task = _world(name, patrol, noise)
     if k:
         world = jittered_start(world, k)
     r = run_mission(world, task, max_time=max_time, config=config)
@@ -156,20 +167,20 @@ def _within(r: dict) -> bool:
 
 
 def run_jitter(names: Sequence[str], runs: int, max_time: float = 300.0, config: ExecutiveConfig | None = None,
-               jobs: int = 1) -> list[dict]:
+               jobs: int = 1, noise: float | None = None) -> list[dict]:
     """``runs`` missions per world from jittered start poses (module doc)."""
-    todo = [(name, k, max_time, config, False) for name in names for k in range(1, runs + 1)]
+    todo = [(name, k, max_time, config, False, noise) for name in names for k in range(1, runs + 1)]
     return isolated_map(_untimed_run, todo, jobs, _log_untimed)
 
 
 def run_sweep(seeds: Sequence[int], max_time: float = 300.0, config: ExecutiveConfig | None = None,
-              jobs: int = 1, patrol: bool = False) -> dict:
+              jobs: int = 1, patrol: bool = False, noise: float | None = None) -> dict:
     """The nominal missions of the random worlds ``seeds`` in ``jobs`` processes, untimed
-    (module doc, ``--sweep``; recurrent missions with ``patrol``)."""
-    rows = isolated_map(_untimed_run, [(f"random{s}", 0, max_time, config, patrol) for s in seeds], jobs,
+    (module doc, ``--sweep``; recurrent missions with ``patrol``; lidar range noise ``noise``)."""
+    rows = isolated_map(_untimed_run, [(f"random{s}", 0, max_time, config, patrol, noise) for s in seeds], jobs,
                         _log_untimed)
     return {"machine": machine_info(), "seeds": [int(seeds[0]), int(seeds[-1]) + 1] if len(seeds) else [],
-            "patrol": bool(patrol), "rows": rows}
+            "patrol": bool(patrol), "noise": noise, "rows": rows}
 
 
 def render_sweep(result: dict) -> str:
@@ -178,10 +189,13 @@ def render_sweep(result: dict) -> str:
     bad = [r for r in rows if not r["completed"] or r["collisions"] or not r.get("every_region_twice", True)]
     ratios = np.array([r["ratio"] for r in rows if r["ratio"] is not None])
     a, b = result["seeds"] or (0, 0)
+    noise = result.get("noise")
     lines = ["# Executive: robustness sweep over random worlds", "",
-             f"Command: `python -m benchmarks.executive --sweep {a}:{b}{' --patrol' if patrol else ''}` (nominal "
+             f"Command: `python -m benchmarks.executive --sweep {a}:{b}{' --patrol' if patrol else ''}"
+             f"{'' if noise is None else f' --noise {noise:g}'}` (nominal "
              "start poses, every obstacle unknown, at most 300 simulated s per mission"
-             + ("; missions `G F` every region" if patrol else "") + ").", "",
+             + ("; missions `G F` every region" if patrol else "")
+             + ("" if noise is None else f"; lidar range noise {noise:g} m, simulator seed 0") + ").", "",
              f"Completed {sum(r['completed'] for r in rows)}/{len(rows)}, collisions "
              f"{sum(r['collisions'] for r in rows)}, total distance {sum(r['distance'] for r in rows):.1f} m, "
              f"total time {sum(r['execution_time'] for r in rows):.0f} s."
@@ -203,8 +217,8 @@ def render_sweep(result: dict) -> str:
 
 def _nominal_run(job) -> dict:
     """One world's mission from its own start pose: the table's row."""
-    name, max_time, config = job
-    world, task = _world(name)
+    name, max_time, config, noise = job
+    world, task = _world(name, noise=noise)
     t0 = time.perf_counter()
     r = run_mission(world, task, max_time=max_time, config=config)
     wall = time.perf_counter() - t0
@@ -231,12 +245,13 @@ def _log_row(_job, r: dict) -> None:
         f"(CPU {r['max_replan_cpu'] * 1e3:.0f}) (wall {r['wall']:.0f} s)")
 
 
-def run(names: Sequence[str], max_time: float = 300.0, config: ExecutiveConfig | None = None) -> dict:
+def run(names: Sequence[str], max_time: float = 300.0, config: ExecutiveConfig | None = None,
+        noise: float | None = None) -> dict:
     """The nominal missions, one at a time (timed), each in a process of its own forked from
     this one once it is prepared (:func:`benchmarks._common.isolated_map`): no mission is timed
     with the memos of the missions before it."""
-    rows = isolated_map(_nominal_run, [(name, max_time, config) for name in names], 1, _log_row)
-    return {"machine": machine_info(), "targets": TARGETS, "rows": rows}
+    rows = isolated_map(_nominal_run, [(name, max_time, config, noise) for name in names], 1, _log_row)
+    return {"machine": machine_info(), "targets": TARGETS, "noise": noise, "rows": rows}
 
 
 def _ms(x):
@@ -244,8 +259,12 @@ def _ms(x):
 
 
 def render_markdown(result: dict) -> str:
+    noise = result.get("noise")
     lines = ["# Executive: missions end to end (obstacles unknown)", "",
-             "Command: `python -m benchmarks.executive` (targets: distance <= 1.25 x full-knowledge tour, "
+             "Command: `python -m benchmarks.executive"
+             + ("" if noise is None else f" --noise {noise:g}` (lidar range noise {noise:g} m, simulator seed 0;")
+             + ("` (" if noise is None else " ")
+             + "targets: distance <= 1.25 x full-knowledge tour, "
              "initial synthesis <= 0.5 s on office, per-tick p95 <= 20 ms, each replan <= 50 ms).", "",
              "Wall times count what other processes take on a shared machine; the CPU columns "
              "(process time) do not.", "",
@@ -342,9 +361,14 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="ExecutiveConfig override (VALUE in JSON), repeatable")
     parser.add_argument("--sweep", metavar="A:B", help="instead: robustness sweep over random worlds A .. B-1")
     parser.add_argument("--patrol", action="store_true", help="with --sweep: recurrent missions (G F every region)")
+    parser.add_argument("--noise", type=float, default=None, metavar="SIGMA",
+                        help="lidar range noise (standard deviation, m) for every mission instead of the world's "
+                             "own (0 in every world here)")
     args = parser.parse_args(argv)
     if args.jitter < 0 or args.jobs < 1:
         parser.error("--jitter must be >= 0 and --jobs >= 1")
+    if args.noise is not None and not (math.isfinite(args.noise) and 0 <= args.noise <= 0.1):
+        parser.error(f"--noise must be a number of metres in [0, 0.1], got {args.noise!r}")
     if args.patrol and args.sweep is None:
         parser.error("--patrol goes with --sweep A:B")
     sweep = None
@@ -362,17 +386,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     except Exception as err:  # the config's own validation (TampError): one line, exit 2
         raise SystemExit(f"python -m benchmarks.executive: {err}") from None
     if sweep is not None:
-        result = run_sweep(sweep, args.max_time, config, args.jobs, args.patrol)
+        result = run_sweep(sweep, args.max_time, config, args.jobs, args.patrol, args.noise)
         if over:
             result["config"] = {k: dataclasses.asdict(v) if dataclasses.is_dataclass(v) else v for k, v in over.items()}
         write_results(args.out, "executive_sweep", result, render_sweep(result))
         return 0
     names = ["simple"] if args.quick else list(SHARED) + [f"random{s}" for s in range(args.random)]
-    result = run(names, args.max_time, config)
+    result = run(names, args.max_time, config, args.noise)
     if over:  # JSON-ready: the controller's settings in full
         result["config"] = {k: dataclasses.asdict(v) if dataclasses.is_dataclass(v) else v for k, v in over.items()}
     if args.jitter:
-        result["jitter"] = run_jitter(names, args.jitter, args.max_time, config, args.jobs)
+        result["jitter"] = run_jitter(names, args.jitter, args.max_time, config, args.jobs, args.noise)
     write_results(args.out, "executive" if not args.quick else "executive_quick", result, render_markdown(result))
     return 0
 

@@ -163,6 +163,16 @@ def test_executive_benchmark_sweep_reports_every_world_and_refuses_a_bad_range(t
     assert "--sweep 3:5 --patrol" in table and "Every region visited at least twice: 2/2" in table
     with pytest.raises(SystemExit):
         exe_bench.main(["--patrol", "--out", str(out)])  # only with --sweep
+    # --noise: every mission's lidar noisy (the worlds' own is noise-free), said in the table
+    assert exe_bench.main(["--sweep", "3:4", "--noise", "0.01", "--out", str(out)]) == 0
+    data = json.loads((out / "executive_sweep.json").read_text())
+    assert data["noise"] == 0.01 and data["rows"][0]["completed"] and data["rows"][0]["collisions"] == 0
+    assert "--sweep 3:4 --noise 0.01" in (out / "executive_sweep.md").read_text()
+    world, _ = exe_bench._world("random3", noise=0.01)
+    assert world.lidar.noise_std == 0.01 and exe_bench._world("random3")[0].lidar.noise_std == 0.0
+    for bad in ("-0.01", "nan", "1"):
+        with pytest.raises(SystemExit):
+            exe_bench.main(["--sweep", "3:4", "--noise", bad, "--out", str(out)])
 
 
 def test_soak_benchmark_quick_patrols_and_reports_every_window(tmp_path, capsys):
