@@ -18,6 +18,8 @@ small arrays (the forest construction calls these on a few dozen rows at a time)
 * :func:`wall_bound_rows`: :func:`navigation.forest._wall_bounds` (lower bounds of the distance
   from a squircle to the workspace boundary from its bounding rectangle and an inscribed
   polygon);
+* :func:`nearest_sample_distance`: the sampled distances of
+  :meth:`~navigation.geometry.ExactDistance.sampled` (clearance bounds);
 * :func:`boundary_points`, :func:`offset_points`, :func:`beta_gradient`:
   :meth:`~navigation.geometry.Squircle.boundary_points`, :meth:`~navigation.geometry.Squircle.offset_points`
   and :meth:`~navigation.geometry.Squircle.gradient` (arc-length-even boundary samples, the
@@ -222,6 +224,34 @@ def sample_table(row: np.ndarray, n: int, sub: int = 16) -> tuple[np.ndarray, np
     psi, pts = np.empty(n), np.empty((n, 2))
     arc = _sample_table_kernel(P, int(n), int(sub), psi, pts, *_fine_grid(int(n)))
     return psi, pts, float(arc)
+
+
+@numba.njit(**_JIT)
+def _nearest_sample_kernel(pts_g, g, q, out):
+    for k in range(len(g)):
+        P = pts_g[g[k]]
+        qx, qy = q[k, 0], q[k, 1]
+        best = np.inf
+        for s in range(P.shape[0]):
+            dx = P[s, 0] - qx
+            dy = P[s, 1] - qy
+            v = dx * dx + dy * dy
+            if v < best:
+                best = v
+            elif v != v:  # numpy's min propagates NaN
+                best = v
+                break
+        out[k] = math.sqrt(best)
+
+
+def nearest_sample_distance(pts_g: np.ndarray, g: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Distances ``(K,)`` of the points ``q (K, 2)`` to the nearest of the boundary samples
+    ``pts_g[g[k]] (n, 2)``: ``sqrt(((pts_g[g] - q[:, None]) ** 2).sum(-1).min(1))`` bit for bit
+    (:meth:`navigation.geometry.ExactDistance.sampled`), without its ``(K, n, 2)`` temporaries
+    (a clearance query near the workspace boundary gathers thousands of its samples per point)."""
+    out = np.empty(len(g))
+    _nearest_sample_kernel(_arr(pts_g), _arr(g, np.intp), _arr(q), out)
+    return out
 
 
 @numba.njit(**_JIT)

@@ -515,7 +515,7 @@ class ExactDistance:
             sel = np.nonzero((j >= lo) & (j < hi))[0]
             if sel.size:
                 g = j[sel] - lo
-                d[sel] = np.sqrt(((pts_g[g] - q[sel, None, :]) ** 2).sum(-1).min(axis=1))
+                d[sel] = _geom_kernel.nearest_sample_distance(pts_g, g, q[sel])
                 h[sel] = half_arc[g]
         return d, h
 

@@ -44,7 +44,7 @@ def warm_up() -> float:
     world with an inner tree, a thin overlap and a wall crossing the workspace boundary, and
     calls the kernels a forest may not reach (refined extreme values, ray entries). Returns the
     seconds it took."""
-    from ._geom_kernel import sample_table
+    from ._geom_kernel import nearest_sample_distance, sample_table
     from ._sample_kernel import extreme_betas_arrays, sample_rows
     from .forest import build_forest
     from .geometry import Squircle, pack, ray_length_packed
@@ -65,7 +65,8 @@ def warm_up() -> float:
     P, psi, pts, w0, spacing = sample_rows(pack(obstacles[:2]), 64)
     extreme_betas_arrays(P[::-1].copy(), np.array([1.0, -1.0]), np.zeros((2, 64)), P, psi, pts, spacing, w0)
     ray_length_packed(pack(obstacles[:1]), np.array([[0.0, 0.0]]), np.array([[1.0, 0.0]]), np.ones(1, bool))
-    sample_table(pack(obstacles[:1])[0], 16)  # ExactDistance's tables (clearances, the simulator)
+    _, pts16, _ = sample_table(pack(obstacles[:1])[0], 16)  # ExactDistance's tables (clearances, the simulator)
+    nearest_sample_distance(pts16[None], np.zeros(1, np.intp), np.zeros((1, 2)))  # their sampled distances
     obstacles[-1].distance(np.array([[0.0, 0.0], [3.0, 3.0]]))  # ExactDistance's refinement
     obstacles[-1].offset_points(0.1, 16)  # boundary points and offset curves (Squircle.grow)
     obstacles[-1].gradient(np.array([[0.0, 0.0]]))  # Squircle.gradient

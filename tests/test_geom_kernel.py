@@ -211,6 +211,30 @@ def test_lazy_distance_tables_give_the_same_numbers():
     assert all(np.array_equal(lazy.boundary_samples(i), eager.boundary_samples(i)) for i in range(7))
 
 
+def test_sampled_distances_are_the_numpy_form():
+    """ExactDistance.sampled's distances (compiled: nearest_sample_distance) are the bits of
+    ``sqrt(((pts[g] - q[:, None]) ** 2).sum(-1).min(1))``, a NaN sample giving NaN as numpy's
+    min does; and the table's sampled distances are those of its boundary samples."""
+    from navigation._geom_kernel import nearest_sample_distance
+
+    rng = np.random.default_rng(13)
+    for n in (1, 7, 64, 4441):
+        pts = rng.normal(size=(3, n, 2)) * rng.uniform(0.01, 10)
+        g = rng.integers(0, 3, 25)
+        q = rng.normal(size=(25, 2)) * 3
+        ref = np.sqrt(((pts[g] - q[:, None, :]) ** 2).sum(-1).min(axis=1))
+        assert np.array_equal(nearest_sample_distance(pts, g, q), ref)
+    pts[1, 3] = np.nan
+    assert np.isnan(nearest_sample_distance(pts, np.array([1, 0]), np.zeros((2, 2)))).tolist() == [True, False]
+    assert nearest_sample_distance(pts, np.zeros(0, np.intp), np.zeros((0, 2))).shape == (0,)
+    sqs = [Squircle((0.0, 0.0), 1.0, 0.5, 0.3, 0.9), Squircle((0.0, 0.0), 8.0, 6.0, 0.0, 0.99)]
+    table = G.ExactDistance(sqs, spacing=0.01, split=1, min_samples=64, lazy=True)
+    q = rng.uniform(-3, 3, (10, 2))
+    j = rng.integers(0, 2, 10)
+    d, _ = table.sampled(q, j)
+    assert np.array_equal(d, [np.sqrt(((table.boundary_samples(i) - p) ** 2).sum(-1).min()) for p, i in zip(q, j)])
+
+
 def test_max_perimeter_skips_only_shapes_that_cannot_be_the_largest():
     rng = np.random.default_rng(13)
     for _ in range(200):
