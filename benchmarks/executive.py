@@ -183,19 +183,25 @@ def run_sweep(seeds: Sequence[int], max_time: float = 300.0, config: ExecutiveCo
             "patrol": bool(patrol), "noise": noise, "rows": rows}
 
 
+def _noise_words(result: dict) -> tuple[str, str]:
+    """The command-line option and the description of a result's lidar noise ("" for none)."""
+    noise = result.get("noise")
+    if noise is None:
+        return "", ""
+    return f" --noise {noise:g}", f"lidar range noise {noise:g} m, simulator seed 0"
+
+
 def render_sweep(result: dict) -> str:
     rows = result["rows"]
     patrol = result.get("patrol", False)
     bad = [r for r in rows if not r["completed"] or r["collisions"] or not r.get("every_region_twice", True)]
     ratios = np.array([r["ratio"] for r in rows if r["ratio"] is not None])
     a, b = result["seeds"] or (0, 0)
-    noise = result.get("noise")
+    option, noise = _noise_words(result)
     lines = ["# Executive: robustness sweep over random worlds", "",
-             f"Command: `python -m benchmarks.executive --sweep {a}:{b}{' --patrol' if patrol else ''}"
-             f"{'' if noise is None else f' --noise {noise:g}'}` (nominal "
-             "start poses, every obstacle unknown, at most 300 simulated s per mission"
-             + ("; missions `G F` every region" if patrol else "")
-             + ("" if noise is None else f"; lidar range noise {noise:g} m, simulator seed 0") + ").", "",
+             f"Command: `python -m benchmarks.executive --sweep {a}:{b}{' --patrol' if patrol else ''}{option}` "
+             "(nominal start poses, every obstacle unknown, at most 300 simulated s per mission"
+             + ("; missions `G F` every region" if patrol else "") + (f"; {noise}" if noise else "") + ").", "",
              f"Completed {sum(r['completed'] for r in rows)}/{len(rows)}, collisions "
              f"{sum(r['collisions'] for r in rows)}, total distance {sum(r['distance'] for r in rows):.1f} m, "
              f"total time {sum(r['execution_time'] for r in rows):.0f} s."
@@ -259,12 +265,10 @@ def _ms(x):
 
 
 def render_markdown(result: dict) -> str:
-    noise = result.get("noise")
+    option, noise = _noise_words(result)
     lines = ["# Executive: missions end to end (obstacles unknown)", "",
-             "Command: `python -m benchmarks.executive"
-             + ("" if noise is None else f" --noise {noise:g}` (lidar range noise {noise:g} m, simulator seed 0;")
-             + ("` (" if noise is None else " ")
-             + "targets: distance <= 1.25 x full-knowledge tour, "
+             f"Command: `python -m benchmarks.executive{option}` ({f'{noise}; ' if noise else ''}"
+             "targets: distance <= 1.25 x full-knowledge tour, "
              "initial synthesis <= 0.5 s on office, per-tick p95 <= 20 ms, each replan <= 50 ms).", "",
              "Wall times count what other processes take on a shared machine; the CPU columns "
              "(process time) do not.", "",
