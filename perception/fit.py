@@ -611,14 +611,7 @@ def fit_squircle(points, *, views=None, free=None, config: PerceptionConfig | No
     vs = None if vw is None else _subsample(vw, _MAX_POINTS)
     fs = _near_free(fr, qs, cfg)
     if len(q) < 3:  # too few points for a shape: a min_unseen square behind them
-        c = q.mean(axis=0)
-        if vw is not None:
-            n = vw.mean(axis=0)
-            nn = np.linalg.norm(n)
-            c = c + (n / nn if nn > 0 else 0.0) * cfg.min_unseen / 2
-        p = np.array([c[0], c[1], math.log(cfg.min_unseen / 2), math.log(cfg.min_unseen / 2), 0.0, 0.5])
-        p = _contain(p, q, cfg.inside_tol)
-        return Fit(_to_squircle(p), 0.0, False, np.arange(len(q)))
+        return Fit(_to_squircle(_few(q, vw, fs, cfg)), 0.0, False, np.arange(len(q)))
     best = None
     warm = _warm_seed(init, qs, cfg)
     seeds = _seeds(qs, vs, cfg, ellipse=warm is None)  # (the ellipse seed is not solved after a warm one)
@@ -649,6 +642,49 @@ def fit_squircle(points, *, views=None, free=None, config: PerceptionConfig | No
     x, closed = _complete(x, qs, vs, cfg)
     x = _contain(x, q, cfg.inside_tol)
     return Fit(_to_squircle(x), rms, closed, np.arange(len(q)), p95)
+
+
+_FEW_SHIFTS = (0.0, 0.25, -0.25, 0.5, -0.5, 0.75, -0.75, 1.0, -1.0)  # lateral shifts, half-widths
+_FEW_FREE = True  # the few-returns square slides sideways off free space (False: centred)
+
+
+def _few(q: np.ndarray, vw, fs: np.ndarray, cfg: PerceptionConfig) -> np.ndarray:
+    """Parameters of the estimate of one or two returns: a ``min_unseen`` square behind them
+    (centred ``min_unseen / 2`` beyond their mean along the mean view direction), grown to
+    contain them. Which side of the returns the obstacle extends to is not seen; where the
+    centred square would hold free points (``fs``, the beams passed there) more than
+    ``free_tol`` inside, it slides sideways (across the view, by up to its half-width, so that
+    the returns stay on its near face) to the shift, in :data:`_FEW_SHIFTS` order (the
+    smallest first), holding the fewest. Measured case: a grazing return at the corner of a
+    wall's end (``cluttered20``, the wall at (3.06, 0.82)) put half of the centred square into
+    the 0.28 m passage beside the wall, which the lidar had seen free, and closed it."""
+    c = q.mean(axis=0)
+    half = cfg.min_unseen / 2
+    n = None
+    if vw is not None:
+        n = vw.mean(axis=0)
+        nn = float(np.linalg.norm(n))
+        n = n / nn if nn > 0 else None
+    if n is not None:
+        c = c + n * half
+
+    def square(centre):
+        p = np.array([centre[0], centre[1], math.log(half), math.log(half), 0.0, 0.5])
+        return _contain(p, q, cfg.inside_tol)
+
+    p = square(c)
+    if not _FEW_FREE or n is None or not len(fs):
+        return p
+    side = np.array([-n[1], n[0]])
+    best, best_k = p, None
+    for t in _FEW_SHIFTS:
+        pt = p if t == 0.0 else square(c + side * (t * half))
+        k = int(np.count_nonzero(radial_error(_to_squircle(pt), fs) < -cfg.free_tol))
+        if best_k is None or k < best_k:
+            best, best_k = pt, k
+        if k == 0:
+            break
+    return best
 
 
 def _distances(sq: Squircle, q: np.ndarray) -> tuple[float, float]:

@@ -76,6 +76,29 @@ def test_one_face_is_completed_behind_it():
     assert np.all(sq.beta(front) > 0)
 
 
+def test_a_grazing_return_beside_a_free_passage_keeps_the_passage_free():
+    """One return at the corner of a wall's end, seen from below (the case of ``cluttered20``):
+    the min_unseen square behind it slides off the free cells the beams left beside the wall
+    (here to the wall's side), holds the return and stays min_unseen deep; without free cells it
+    is the centred square, unchanged."""
+    q = np.array([[0.0, 0.0]])
+    views = np.array([[0.0, 1.0]])  # seen from below
+    xs, ys = np.meshgrid(np.arange(0.02, 0.2, 0.02), np.arange(-0.1, 0.3, 0.02))
+    free = np.stack((xs.ravel(), ys.ravel()), axis=1)  # the passage to the right of the wall's end
+    centred = fit_squircle(q, views=views, config=CFG).squircle
+    assert centred.center[0] == pytest.approx(0.0) and centred.center[1] > 0  # behind the return
+    assert np.count_nonzero(radial_error(centred, free) < -CFG.free_tol) > 0  # into the passage
+    sq = fit_squircle(q, views=views, free=free, config=CFG).squircle
+    assert np.count_nonzero(radial_error(sq, free) < -CFG.free_tol) == 0
+    assert sq.center[0] < 0 and sq.center[1] == pytest.approx(centred.center[1])  # slid sideways only
+    assert np.all(_outside(sq, q) <= CFG.inside_tol + 1e-9)
+    assert min(sq.width, sq.height) >= CFG.min_unseen - 1e-9
+    # free cells all round: nothing to gain by sliding, the centred square stays
+    ring = np.array([[0.0, -0.05], [0.3, 0.3], [-0.3, 0.3]])
+    same = fit_squircle(q, views=views, free=ring, config=CFG).squircle
+    assert same == centred
+
+
 def test_free_space_evidence_is_kept_outside():
     truth = Squircle((0.0, 0.0), 0.6, 0.2, 0.0, 0.95)
     pts = truth.boundary_points(200)
