@@ -645,7 +645,8 @@ def fit_squircle(points, *, views=None, free=None, config: PerceptionConfig | No
 
 
 _FEW_SHIFTS = (0.0, 0.25, -0.25, 0.5, -0.5, 0.75, -0.75, 1.0, -1.0)  # lateral shifts, half-widths
-_FEW_FREE = True  # the few-returns square slides sideways off free space (False: centred)
+_FEW_FREE = False  # the few-returns square slides sideways off free space (off by default: measured,
+# docs/perception.md "One or two returns"; random520's robot then stops blocked for good)
 
 
 def _few(q: np.ndarray, vw, fs: np.ndarray, cfg: PerceptionConfig) -> np.ndarray:
@@ -655,9 +656,12 @@ def _few(q: np.ndarray, vw, fs: np.ndarray, cfg: PerceptionConfig) -> np.ndarray
     centred square would hold free points (``fs``, the beams passed there) more than
     ``free_tol`` inside, it slides sideways (across the view, by up to its half-width, so that
     the returns stay on its near face) to the shift, in :data:`_FEW_SHIFTS` order (the
-    smallest first), holding the fewest. Measured case: a grazing return at the corner of a
-    wall's end (``cluttered20``, the wall at (3.06, 0.82)) put half of the centred square into
-    the 0.28 m passage beside the wall, which the lidar had seen free, and closed it."""
+    smallest first), holding the fewest (with :data:`_FEW_FREE`; off by default). Measured
+    case: a grazing return at the corner of a wall's end (``cluttered20``, the wall at (3.06,
+    0.82)) put half of the centred square into the 0.28 m passage beside the wall, which the
+    lidar had seen free, and closed it. Why it is off: on ``random520`` the slid squares led to
+    a forest repair covering two bars and the region under them with one estimate, and the robot
+    stopped ``blocked`` for good (docs/perception.md)."""
     c = q.mean(axis=0)
     half = cfg.min_unseen / 2
     n = None

@@ -76,11 +76,15 @@ def test_one_face_is_completed_behind_it():
     assert np.all(sq.beta(front) > 0)
 
 
-def test_a_grazing_return_beside_a_free_passage_keeps_the_passage_free():
+def test_a_grazing_return_beside_a_free_passage_keeps_the_passage_free(monkeypatch):
     """One return at the corner of a wall's end, seen from below (the case of ``cluttered20``):
-    the min_unseen square behind it slides off the free cells the beams left beside the wall
-    (here to the wall's side), holds the return and stays min_unseen deep; without free cells it
-    is the centred square, unchanged."""
+    with ``fit._FEW_FREE`` (opt-in) the min_unseen square behind it slides off the free cells
+    the beams left beside the wall (here to the wall's side), holds the return and stays
+    min_unseen deep; without free cells inside it is the centred square, unchanged; by default
+    it is always the centred square."""
+    import perception.fit as fit_module
+
+    monkeypatch.setattr(fit_module, "_FEW_FREE", True)
     q = np.array([[0.0, 0.0]])
     views = np.array([[0.0, 1.0]])  # seen from below
     xs, ys = np.meshgrid(np.arange(0.02, 0.2, 0.02), np.arange(-0.1, 0.3, 0.02))
@@ -97,6 +101,8 @@ def test_a_grazing_return_beside_a_free_passage_keeps_the_passage_free():
     ring = np.array([[0.0, -0.05], [0.3, 0.3], [-0.3, 0.3]])
     same = fit_squircle(q, views=views, free=ring, config=CFG).squircle
     assert same == centred
+    monkeypatch.setattr(fit_module, "_FEW_FREE", False)
+    assert fit_squircle(q, views=views, free=free, config=CFG).squircle == centred
 
 
 def test_free_space_evidence_is_kept_outside():
