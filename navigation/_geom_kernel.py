@@ -960,3 +960,156 @@ def root_partials_rows(P: np.ndarray, o: np.ndarray, r0: np.ndarray, vx: np.ndar
     _root_partials_kernel(_arr(P).reshape(-1, 7), _arr(o).reshape(-1, 2), _arr(r0).reshape(-1), _arr(vx).reshape(-1),
                           _arr(vy).reshape(-1), out)
     return out
+
+
+# ---------------------------------------------------------------------- snug inflation
+@numba.njit(inline="always", **_JIT)
+def _gauge2(x, y, A, B, c):
+    """``beta + 1`` (the squared gauge) of the point ``(x, y)`` in the local frame of the
+    squircle with half extents ``A, B`` and ``c = 2 - 4 s^2``."""
+    u, w = x / A, y / B
+    u2, w2 = u * u, w * w
+    return 0.5 * (u2 + w2 + math.sqrt(max(u2 * u2 + w2 * w2 + c * u2 * w2, 0.0)))
+
+
+@numba.njit(inline="always", **_JIT)
+def _gauge2_dx(x, y, A, B, c):
+    """The exact partial derivatives of :func:`_gauge2` in ``x`` and ``y``."""
+    u, w = x / A, y / B
+    u2, w2 = u * u, w * w
+    R = math.sqrt(max(u2 * u2 + w2 * w2 + c * u2 * w2, 0.0))
+    if R > 0.0:
+        gu = u + (u2 * u + 0.5 * c * u * w2) / R
+        gw = w + (w2 * w + 0.5 * c * w * u2) / R
+    else:
+        gu, gw = u, w
+    return gu / A, gw / B
+
+
+@numba.njit(**_JIT)
+def _snug_k(a, b, r, c, P, h):
+    """The least ``k >= 1`` (to 1e-12 relative) for which every point of ``P (n, 2)`` (local
+    frame) has ``_gauge2 <= 1`` with half extents ``a + k r + h``, ``b + k r + h``; ``inf``
+    when none below 1e6 does. Containment is monotone in ``k`` (the unit ball is convex and
+    symmetric about both axes): each pass takes the point outside by most at the current ``k``
+    and raises ``k`` by bisection until it is inside, until none is outside."""
+    K = 1.0
+    for _ in range(P.shape[0]):
+        worst, i = 1.0, -1
+        A, B = a + K * r + h, b + K * r + h
+        for j in range(P.shape[0]):
+            g = _gauge2(P[j, 0], P[j, 1], A, B, c)
+            if g > worst:
+                worst, i = g, j
+        if i < 0:
+            return K
+        x, y = P[i, 0], P[i, 1]
+        lo, hi = K, 2.0 * K
+        while _gauge2(x, y, a + hi * r + h, b + hi * r + h, c) > 1.0:
+            lo, hi = hi, 2.0 * hi
+            if hi > 1e6:
+                return math.inf
+        for _ in range(80):
+            mid = 0.5 * (lo + hi)
+            if _gauge2(x, y, a + mid * r + h, b + mid * r + h, c) <= 1.0:
+                hi = mid
+            else:
+                lo = mid
+            if hi - lo <= 1e-12 * hi:
+                break
+        K = hi
+    return K
+
+
+@numba.njit(**_JIT)
+def _snug_excess(a, b, r, c, k, Bp, N, h):
+    """The largest distance, less ``r``, from the boundary points ``Bp (m, 2)`` along their
+    outward unit normals ``N`` to the boundary of the squircle with half extents ``a + k r + h``,
+    ``b + k r + h`` (local frame): how far that squircle reaches beyond the ``r``-offset.
+    Each exit is the root of the convex ``_gauge2(b + t n) - 1`` on ``[r, t_hi]``, found by
+    Newton steps kept inside a shrinking bracket (bisection where a step leaves it)."""
+    A, B = a + k * r + h, b + k * r + h
+    worst = 0.0
+    for i in range(Bp.shape[0]):
+        bx, by, nx, ny = Bp[i, 0], Bp[i, 1], N[i, 0], N[i, 1]
+        lo = r
+        if _gauge2(bx + lo * nx, by + lo * ny, A, B, c) > 1.0:
+            lo = 0.0  # the offset point itself is outside: only when k is below the snug one
+        hi = max(2.0 * r, 1e-9)
+        while _gauge2(bx + hi * nx, by + hi * ny, A, B, c) <= 1.0:
+            lo, hi = hi, 2.0 * hi
+        t = hi
+        for _ in range(60):
+            x, y = bx + t * nx, by + t * ny
+            f = _gauge2(x, y, A, B, c) - 1.0
+            if f > 0.0:
+                hi = t
+            else:
+                lo = t
+            gx, gy = _gauge2_dx(x, y, A, B, c)
+            df = gx * nx + gy * ny
+            step = t - f / df if df > 0.0 else 0.5 * (lo + hi)
+            if not (lo < step < hi):
+                step = 0.5 * (lo + hi)
+            if hi - lo <= 1e-12 * hi or step == t:
+                break
+            t = step
+        worst = max(worst, hi - r)
+    return worst
+
+
+@numba.njit(**_JIT)
+def _snug_eval(a, b, r, s2, P, Bp, N, h, side):
+    """``(k, J)`` at ``s'`` = ``s2``: the snug ``k`` and the objective ``J``, the larger of the
+    largest reach and ``side`` times the sides' own ``(k - 1) r``."""
+    c = 2.0 - 4.0 * s2 * s2
+    k = _snug_k(a, b, r, c, P, h)
+    if not math.isfinite(k):
+        return k, math.inf
+    return k, max(_snug_excess(a, b, r, c, k, Bp, N, h), side * (k - 1.0) * r)
+
+
+@numba.njit(**_JIT)
+def _snug_kernel(a, b, s, r, P, Bp, N, grid, refine, h, side):
+    best_s, (best_k, best_e) = s, _snug_eval(a, b, r, s, P, Bp, N, h, side)
+    j_best = grid
+    for j in range(grid):
+        s2 = s * j / grid
+        k, e = _snug_eval(a, b, r, s2, P, Bp, N, h, side)
+        if e < best_e:
+            best_s, best_k, best_e, j_best = s2, k, e, j
+    # golden-section search between the grid neighbours of the best
+    lo = s * max(j_best - 1, 0) / grid
+    hi = s * min(j_best + 1, grid) / grid
+    g = 0.5 * (math.sqrt(5.0) - 1.0)
+    x1, x2 = hi - g * (hi - lo), lo + g * (hi - lo)
+    k1, e1 = _snug_eval(a, b, r, x1, P, Bp, N, h, side)
+    k2, e2 = _snug_eval(a, b, r, x2, P, Bp, N, h, side)
+    for _ in range(refine):
+        if e1 < e2:
+            hi, x2, k2, e2 = x2, x1, k1, e1
+            x1 = hi - g * (hi - lo)
+            k1, e1 = _snug_eval(a, b, r, x1, P, Bp, N, h, side)
+        else:
+            lo, x1, k1, e1 = x1, x2, k2, e2
+            x2 = lo + g * (hi - lo)
+            k2, e2 = _snug_eval(a, b, r, x2, P, Bp, N, h, side)
+    if e1 < best_e:
+        best_s, best_k, best_e = x1, k1, e1
+    if e2 < best_e:
+        best_s, best_k, best_e = x2, k2, e2
+    return best_s, best_k, best_e
+
+
+def snug_shape(a: float, b: float, s: float, r: float, offset: np.ndarray, boundary: np.ndarray,
+               normals: np.ndarray, grid: int = 16, refine: int = 12, h: float = 1e-9, side: float = 1.0):
+    """``(s', k, excess)`` for :meth:`navigation.geometry.Squircle.grow_snug`: over ``s'`` in
+    ``[0, s]`` (a grid of ``grid + 1`` values, then ``refine`` golden-section steps between the
+    best one's neighbours), the least ``k`` whose squircle (half extents ``a + k r + h``,
+    ``b + k r + h``, parameter ``s'``) contains the ``offset`` points, and of those the one whose
+    largest reach beyond the ``r``-offset along the ``normals`` at the ``boundary`` points (all
+    in the local frame), or ``side`` times how far its sides moved out (``(k - 1) r``) when that
+    is larger, is least."""
+    return _snug_kernel(float(a), float(b), float(s), float(r), _arr(offset).reshape(-1, 2),
+                        _arr(boundary).reshape(-1, 2), _arr(normals).reshape(-1, 2), int(grid), int(refine), float(h),
+                        float(side))

@@ -69,5 +69,6 @@ def warm_up() -> float:
     nearest_sample_distance(pts16[None], np.zeros(1, np.intp), np.zeros((1, 2)))  # their sampled distances
     obstacles[-1].distance(np.array([[0.0, 0.0], [3.0, 3.0]]))  # ExactDistance's refinement
     obstacles[-1].offset_points(0.1, 16)  # boundary points and offset curves (Squircle.grow)
+    Squircle((0.0, 0.0), 0.2, 0.6, 0.1, 0.99).grow_snug(0.13)  # the roadmaps' inflation (not memoised yet)
     obstacles[-1].gradient(np.array([[0.0, 0.0]]))  # Squircle.gradient
     return time.perf_counter() - t0

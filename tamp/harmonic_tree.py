@@ -334,7 +334,9 @@ def _terminal(rm: Roadmap, q: np.ndarray, start, goal, reason: TreeFailure) -> _
                 raise NoTreePathError(start, goal, reason, f"inside obstacle {j} inflated by the robot radius")
             level = min(b, 0.5 * c)
             for _ in range(_HALVINGS):
-                sq = grown(o, r + level) if r + level > 0 else o
+                # the plain inflation: a new amount per terminal, and grow is cheaper than
+                # grow_snug (both contain the neighbourhood; this one reaches further at corners)
+                sq = o.grow(r + level) if r + level > 0 else o
                 if sq.beta(q) > 0:
                     break
                 level *= 0.5

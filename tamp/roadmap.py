@@ -18,9 +18,12 @@ workspace boundary, i.e. at clearance ``>= b`` (``b_W``) in the robot's configur
 otherwise: the paper's buffer is one number, and a caller whose boundary is known exactly while
 its obstacles are estimates (the executive) may keep a smaller margin from the boundary.
 This is certified exactly, without sampling: every obstacle ``O_j`` is replaced by the squircle
-``G_j = O_j.grow(r + b)``, which contains ``O_j`` grown by ``r + b``
-(:meth:`navigation.Squircle.grow`), and the workspace by ``W' = W.grow(-(r + b_W))``. Squircles are
-convex (``beta + 1`` is the square of a norm), so
+``G_j = O_j.grow_snug(r + b)``, which contains ``O_j`` grown by ``r + b``
+(:meth:`navigation.Squircle.grow_snug`: since the thirty-seventh session a rounder ``s`` where
+that reaches less far beyond the neighbourhood; :meth:`~navigation.Squircle.grow`, which keeps
+``s``, reached ``(sqrt 2 - 1)(r + b)`` beyond it at sharp corners and closed passages between a
+corner and another shape that the buffer leaves open), and the workspace by
+``W' = W.grow(-(r + b_W))``. Squircles are convex (``beta + 1`` is the square of a norm), so
 
 * a segment avoids ``G_j`` iff ``min_t beta_j(a + t (b - a)) > 0``; ``beta_j`` is convex along
   the segment, and the minimum is bracketed by bisection on the sign of its exact derivative
@@ -141,7 +144,8 @@ class RoadmapConfig:
 
 
 def grown(sq: Squircle, amount: float) -> Squircle:
-    """``sq.grow(amount)`` (memoised by :meth:`Squircle.grow`) with a :class:`WorldError` on failure.
+    """``sq.grow_snug(amount)`` (memoised; :meth:`Squircle.grow` when shrinking) with a
+    :class:`WorldError` on failure.
 
     Raises
     ------
@@ -149,7 +153,7 @@ def grown(sq: Squircle, amount: float) -> Squircle:
         The squircle cannot be shrunk that much (``amount < 0``).
     """
     try:
-        return sq.grow(amount)
+        return sq.grow_snug(amount)
     except ValueError as err:
         raise WorldError(f"cannot grow {sq} by {amount:g}: {err}", "workspace") from None
 
@@ -247,7 +251,7 @@ class Roadmap:
         Robot radius ``r``.
     config : RoadmapConfig
     buffered : tuple of Squircle
-        ``G_j = obstacles[j].grow(r + b)``.
+        ``G_j = obstacles[j].grow_snug(r + b)``.
     free_workspace : Squircle
         ``W' = workspace.grow(-(r + b_W))``.
     P : (M, 7) array

@@ -116,16 +116,17 @@ def test_a_region_behind_a_passage_the_noisy_estimates_close_is_reported_blocked
         assert r["state"] == "blocked" and "r1" in r["message"], r["message"]
 
 
-@pytest.mark.parametrize("seed, counter", [(103, "gap_searches"), (520, "looks")])
-def test_sweep_worlds_whose_robot_once_stopped_blocked_for_good_complete(seed, counter):
+@pytest.mark.parametrize("seed", [103, 520])
+def test_sweep_worlds_whose_robot_once_stopped_blocked_for_good_complete(seed):
     """``python -m benchmarks.executive --sweep`` found these (thirty-second session): on 103 no
     roadmap vertex saw through the passages out of a pocket (narrow passages), on 520 two bars
-    seen from one side hid the region under one estimate (going to look); the runner's output
-    counts what saved each."""
+    seen from one side hid the region under one estimate; the gap search and going to look
+    saved them until the roadmaps' snug inflation (thirty-seventh session), with which neither
+    run needs them (both have tests of their own: the slits here and in
+    ``test_harmonic_tree.py``, the looks below)."""
     world, task = _random_mission(seed)
     r = run_mission(world, task, max_time=300)
     _check_run(r)
-    assert r[counter] >= 1, r
 
 
 # ---------------------------------------------------------------------- blocked
@@ -344,7 +345,7 @@ def _slit_world(slit: float) -> World:
         "task": "F b"})
 
 
-@pytest.mark.parametrize("slit", [0.28, 0.32])
+@pytest.mark.parametrize("slit", [0.28, 0.3])  # from 0.31 m the snugly grown walls' vertices see through
 def test_a_region_behind_a_passage_no_roadmap_vertex_sees_through_is_reached_not_blocked(slit):
     """No roadmap has a path to ``b`` (the passage is too narrow for the boundary vertices);
     the executive adds the passage's vertices to the fallback roadmap (``gap_searches``) and
@@ -922,17 +923,17 @@ def test_a_mission_over_all_regions_that_cannot_read_a_new_one_needs_replace():
 
 def test_trees_between_unmoved_regions_are_kept():
     world = shared_world("simple")
-    ex = Executive(world, "G F a & G F b", known=True)
+    ex = Executive(world, "G F a & G F c", known=True)  # a -> c goes round the bar at (2.6, 0.9)
     sim = Simulator(world, seed=0)
     _drive(ex, sim, 5)
     pairs = dict(ex._pair)
-    assert ("a", "b") in pairs
-    cost = ex.planner.navmap.cost(("a", 0), ("b", 0))
-    assert cost > ex.planner.navmap.initial_cost(("a", 0), ("b", 0))  # the tree's cost
-    ex.set_regions({"d": D, "c": {"center": [3.5, 0.3], "radius": 0.15}})
-    assert all(ex._pair.get(k) is v for k, v in pairs.items() if "c" not in k)
-    assert not any("c" in k for k in ex._pair)
-    assert ex.planner.navmap.cost(("a", 0), ("b", 0)) == cost  # the evaluated cost, not the initial one
+    assert ("a", "c") in pairs
+    cost = ex.planner.navmap.cost(("a", 0), ("c", 0))
+    assert cost > ex.planner.navmap.initial_cost(("a", 0), ("c", 0))  # the tree's cost
+    ex.set_regions({"d": D, "b": {"center": [3.5, 2.3], "radius": 0.15}})
+    assert all(ex._pair.get(k) is v for k, v in pairs.items() if "b" not in k)
+    assert not any("b" in k for k in ex._pair)
+    assert ex.planner.navmap.cost(("a", 0), ("c", 0)) == cost  # the evaluated cost, not the initial one
 
 
 def test_a_region_placed_around_the_robot_counts_as_entered():

@@ -185,6 +185,73 @@ def test_grow_zero_is_identity():
     assert SHAPES[0].grow(0.0) is SHAPES[0]
 
 
+def _reach(sq: Squircle, big: Squircle, r: float) -> float:
+    """How far ``big`` reaches beyond the ``r``-neighbourhood of ``sq`` (dense boundary)."""
+    return float(np.max(sq.distance(big.boundary_points(1500), 1024))) - r
+
+
+_SNUG = [Squircle((0.3, -0.2), w, h, th, s) for (w, h, th, s) in
+         [(0.3, 0.69, 0.3, 0.99), (0.2, 1.0, -1.1, 0.95), (0.5, 0.5, 2.0, 0.9), (0.25, 0.8, 0.0, 0.5),
+          (0.3, 0.69, 0.7, 0.0), (1.2, 0.15, 0.4, 0.999)]]
+
+
+@pytest.mark.parametrize("sq", SHAPES + _SNUG)
+@pytest.mark.parametrize("r", [0.05, 0.13, 0.25])
+def test_snug_growth_contains_the_neighbourhood_and_reaches_no_further_than_grow(sq, r):
+    """``grow_snug``: same centre and rotation, ``s' <= s``; every point within ``r`` of the
+    squircle is inside (the offset curve, densely, and random points of the neighbourhood);
+    it reaches no further beyond the neighbourhood than :meth:`grow` (1 mm tolerance: the
+    search measures at every sixth normal)."""
+    snug = sq.grow_snug(r)
+    assert (snug.center, snug.theta) == (sq.center, sq.theta) and 0.0 <= snug.s <= sq.s
+    offset = sq.offset_points(r, 20000)
+    assert np.all(snug.beta(offset) <= 0.0)
+    rng = np.random.default_rng(5)
+    q = _random_points(sq, rng, 4000)
+    near = q[sq.distance(q) <= r]
+    assert len(near) > 100 and np.all(snug.beta(near) < 0.0)
+    assert _reach(sq, snug, r) <= _reach(sq, sq.grow(r), r) + 1e-3
+    assert sq.grow_snug(r) is snug  # memoised
+
+
+@pytest.mark.parametrize("r", [0.13, 0.25])
+def test_snug_growth_hugs_sharp_corners(r):
+    """A nearly rectangular squircle: :meth:`grow` reaches ``(sqrt 2 - 1) r``-ish beyond the
+    neighbourhood at the corners; ``grow_snug`` at most 45 % of that, its sides moved out at
+    most a third of what it saves at the corners (the side weight 3)."""
+    sq = _SNUG[0]
+    plain, snug = sq.grow(r), sq.grow_snug(r)
+    before, after = _reach(sq, plain, r), _reach(sq, snug, r)
+    assert before > 0.3 * r and after < 0.45 * before
+    side = (snug.width - sq.width) / 2 - r
+    assert 0.0 <= side <= (before - after) / 3 + 1e-4
+
+
+def test_snug_growth_of_nothing_or_less_is_grow():
+    sq = _SNUG[1]
+    assert sq.grow_snug(0.0) is sq
+    assert sq.grow_snug(-0.05) == sq.grow(-0.05)
+    for bad in (float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="finite"):
+            sq.grow_snug(bad)
+
+
+@pytest.mark.parametrize("s", [0.0, 0.5, 0.95])
+def test_snug_kernel_gauge_derivatives_match_finite_differences(s):
+    from navigation._geom_kernel import _gauge2, _gauge2_dx
+
+    A, B, c = 0.4, 0.25, 2.0 - 4.0 * s * s
+    h = 1e-6
+    for x, y in [(0.3, 0.1), (-0.2, 0.35), (0.5, -0.4), (0.0, 0.2)]:
+        gx, gy = _gauge2_dx(x, y, A, B, c)
+        fx = (_gauge2(x + h, y, A, B, c) - _gauge2(x - h, y, A, B, c)) / (2 * h)
+        fy = (_gauge2(x, y + h, A, B, c) - _gauge2(x, y - h, A, B, c)) / (2 * h)
+        assert gx == pytest.approx(fx, rel=1e-6, abs=1e-8) and gy == pytest.approx(fy, rel=1e-6, abs=1e-8)
+        # beta + 1 of the packed row, the same point in world coordinates
+        sq = Squircle((0.0, 0.0), 2 * A, 2 * B, 0.0, s)
+        assert _gauge2(x, y, A, B, c) == pytest.approx(float(sq.beta(np.array([x, y]))) + 1.0, rel=1e-12)
+
+
 class TestShapes:
     """Every point function takes (2,) or (N, 2) and returns the same kind."""
 

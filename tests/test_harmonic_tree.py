@@ -370,10 +370,11 @@ def _slit(case: str, slit: float):
     return ws, walls, (0.6, 0.5, 0.0), (3.4, 2.5, 0.0)
 
 
-@pytest.mark.parametrize("case, slit", [("boundary", 0.29), ("boundary", 0.3), ("obstacles", 0.3), ("obstacles", 0.32)])
+@pytest.mark.parametrize("case, slit", [("boundary", 0.29), ("boundary", 0.3), ("obstacles", 0.29), ("obstacles", 0.3)])
 def test_gap_candidates_open_a_passage_the_boundary_vertices_do_not_see_through(case, slit):
     """A passage a few centimetres wide at the buffer (``2 (r + b)`` = 0.26 m of the slit
-    taken): no boundary vertex sees through it, so the roadmap reports the goal walled off;
+    taken; from 0.31 m the vertices at the walls' snugly grown ends see through it): no
+    boundary vertex sees through it, so the roadmap reports the goal walled off;
     with :meth:`Roadmap.gap_candidates` added, the tree goes through, every segment safe."""
     ws, walls, start, goal = _slit(case, slit)
     rm = Roadmap.build(ws, walls, 0.1, RoadmapConfig(buffer=0.03))
@@ -386,6 +387,29 @@ def test_gap_candidates_open_a_passage_the_boundary_vertices_do_not_see_through(
     tree = plan_tree(opened, start, goal)
     _check_tree(tree, opened, start, goal)
     assert tree.translations.sum() < 4.5  # through the passage (no other way exists)
+
+
+def test_a_passage_under_a_corner_is_open_at_the_buffer_with_the_snug_inflation(monkeypatch):
+    """A wall's flat top 0.56 m below the lower corner of a square turned 45 degrees: 0.06 m to
+    spare at the buffer (``2 (r + b)`` = 0.5 m). The plain inflation (same ``s``) reaches about
+    0.1 m beyond the neighbourhood at that corner and closes the passage; the roadmaps' snug
+    one (:meth:`navigation.Squircle.grow_snug`) leaves it open, and the tree through it keeps
+    ``r + b`` from every obstacle (exact distances along every segment)."""
+    import tamp.roadmap
+
+    ws = Squircle((2.0, 1.5), 4.0, 3.0, 0.0, 0.99)
+    d = 0.6 / math.sqrt(2)
+    walls = [Squircle((2.0, 0.6), 0.3, 1.2, 0.0, 0.99), Squircle((2.0, 1.76 + d), 0.6, 0.6, math.pi / 4, 0.99),
+             Squircle((2.0, 2.6), 0.3, 0.8, 0.0, 0.99)]
+    start, goal = (0.6, 0.5, 0.0), (3.4, 0.5, 0.0)
+    rm = Roadmap.build(ws, walls, 0.1, RoadmapConfig(buffer=0.15))
+    tree = plan_tree(rm, start, goal)
+    _check_tree(tree, rm, start, goal)
+    assert tree.translations.sum() < 3.6  # under the corner: the only way
+    with monkeypatch.context() as m:
+        m.setattr(tamp.roadmap, "grown", lambda sq, a: sq.grow(a))
+        with pytest.raises(NoTreePathError):
+            plan_tree(Roadmap.build(ws, walls, 0.1, RoadmapConfig(buffer=0.15)), start, goal)
 
 
 @pytest.mark.parametrize("case", ["boundary", "obstacles"])
