@@ -1026,8 +1026,8 @@ def _snug_excess(a, b, r, c, k, Bp, N, h):
     """The largest distance, less ``r``, from the boundary points ``Bp (m, 2)`` along their
     outward unit normals ``N`` to the boundary of the squircle with half extents ``a + k r + h``,
     ``b + k r + h`` (local frame): how far that squircle reaches beyond the ``r``-offset.
-    Each exit is the root of the convex ``_gauge2(b + t n) - 1`` on ``[r, t_hi]``, found by
-    Newton steps kept inside a shrinking bracket (bisection where a step leaves it)."""
+    Each exit is the root of the convex ``_gauge2(b + t n) - 1``, found by Newton steps kept
+    inside a shrinking bracket (bisection where a step leaves it)."""
     A, B = a + k * r + h, b + k * r + h
     worst = 0.0
     for i in range(Bp.shape[0]):
@@ -1058,6 +1058,62 @@ def _snug_excess(a, b, r, c, k, Bp, N, h):
     return worst
 
 
+@numba.njit(inline="always", **_JIT)
+def _local_point(a, b, s, psi):
+    """The boundary point at the boundary angle ``psi`` of the squircle with half extents
+    ``a, b`` in its own frame (:func:`point_xy_cs`)."""
+    ux, uy = math.cos(psi), math.sin(psi)
+    m = ux * uy
+    rho = math.sqrt(2.0 / (1.0 + math.sqrt(max(1.0 - 4.0 * s * s * m * m, 0.0))))
+    return rho * ux * a, rho * uy * b
+
+
+@numba.njit(inline="always", **_JIT)
+def _normal_angle(a, b, c, s, psi):
+    x, y = _local_point(a, b, s, psi)
+    gx, gy = _gauge2_dx(x, y, a, b, c)
+    return math.atan2(gy, gx)
+
+
+@numba.njit(**_JIT)
+def _normal_samples(a, b, s, m):
+    """``m`` boundary points of the first quadrant (own frame) whose outward normals make the
+    angles ``pi / 2 j / (m - 1)`` with the x axis (to 1e-6 rad of boundary angle), and those
+    unit normals: the bracketing step of a 256-step scan of the boundary angle, then 12
+    bisection steps (the normal turns monotonically along a convex curve). A sharp corner has
+    little arc length but turns its normal by 90 degrees: samples even in arc length leave it
+    sparse, these do not."""
+    c = 2.0 - 4.0 * s * s
+    G = 256
+    Bp = np.empty((m, 2))
+    N = np.empty((m, 2))
+    i = 0
+    a_hi = _normal_angle(a, b, c, s, 0.5 * math.pi / G)
+    for j in range(m):
+        phi = 0.5 * math.pi * j / (m - 1)
+        if j == 0:
+            psi = 0.0
+        elif j == m - 1:
+            psi = 0.5 * math.pi
+        else:
+            while a_hi < phi and i < G - 1:
+                i += 1
+                a_hi = _normal_angle(a, b, c, s, 0.5 * math.pi * (i + 1) / G)
+            lo, hi = 0.5 * math.pi * i / G, 0.5 * math.pi * (i + 1) / G
+            for _ in range(12):
+                psi = 0.5 * (lo + hi)
+                if _normal_angle(a, b, c, s, psi) < phi:
+                    lo = psi
+                else:
+                    hi = psi
+            psi = 0.5 * (lo + hi)
+        x, y = _local_point(a, b, s, psi)
+        gx, gy = _gauge2_dx(x, y, a, b, c)
+        g = math.sqrt(gx * gx + gy * gy)
+        Bp[j, 0], Bp[j, 1], N[j, 0], N[j, 1] = x, y, gx / g, gy / g
+    return Bp, N
+
+
 @numba.njit(**_JIT)
 def _snug_eval(a, b, r, s2, P, Bp, N, h, side):
     """``(k, J)`` at ``s'`` = ``s2``: the snug ``k`` and the objective ``J``, the larger of the
@@ -1070,46 +1126,70 @@ def _snug_eval(a, b, r, s2, P, Bp, N, h, side):
 
 
 @numba.njit(**_JIT)
-def _snug_kernel(a, b, s, r, P, Bp, N, grid, refine, h, side):
-    best_s, (best_k, best_e) = s, _snug_eval(a, b, r, s, P, Bp, N, h, side)
-    j_best = grid
-    for j in range(grid):
-        s2 = s * j / grid
-        k, e = _snug_eval(a, b, r, s2, P, Bp, N, h, side)
+def _snug_kernel(a, b, s, r, arc, m, grid, refine, h, side):
+    Bn, Nn = _normal_samples(a, b, s, m)
+    n_arc = arc.shape[0]
+    # containment points, folded into the first quadrant (the shapes are symmetric about both
+    # axes): the offset points of the arc-length samples and of the normal-angle samples
+    full = np.empty((n_arc + m, 2))
+    for i in range(n_arc):
+        full[i, 0], full[i, 1] = abs(arc[i, 0]), abs(arc[i, 1])
+    for j in range(m):
+        full[n_arc + j, 0], full[n_arc + j, 1] = Bn[j, 0] + r * Nn[j, 0], Bn[j, 1] + r * Nn[j, 1]
+    # the search: every fourth arc sample and every normal sample for k, every fourth normal
+    # sample as a ray, over q = log(1 - s') (even steps crowd towards sharp corners)
+    n_sub = (n_arc + 3) // 4
+    sub = np.empty((n_sub + m, 2))
+    for i in range(n_sub):
+        sub[i] = full[4 * i]
+    for j in range(m):
+        sub[n_sub + j] = full[n_arc + j]
+    rays_b, rays_n = Bn[::4].copy(), Nn[::4].copy()
+    q0 = math.log(max(1.0 - s, 1e-12))
+    best_q, (best_k, best_e) = q0, _snug_eval(a, b, r, s, sub, rays_b, rays_n, h, side)
+    j_best = 0
+    for j in range(1, grid + 1):
+        q = q0 * (1.0 - j / grid)
+        k, e = _snug_eval(a, b, r, 1.0 - math.exp(q), sub, rays_b, rays_n, h, side)
         if e < best_e:
-            best_s, best_k, best_e, j_best = s2, k, e, j
+            best_q, best_k, best_e, j_best = q, k, e, j
     # golden-section search between the grid neighbours of the best
-    lo = s * max(j_best - 1, 0) / grid
-    hi = s * min(j_best + 1, grid) / grid
+    lo = q0 * (1.0 - max(j_best - 1, 0) / grid)
+    hi = q0 * (1.0 - min(j_best + 1, grid) / grid)
     g = 0.5 * (math.sqrt(5.0) - 1.0)
     x1, x2 = hi - g * (hi - lo), lo + g * (hi - lo)
-    k1, e1 = _snug_eval(a, b, r, x1, P, Bp, N, h, side)
-    k2, e2 = _snug_eval(a, b, r, x2, P, Bp, N, h, side)
+    k1, e1 = _snug_eval(a, b, r, 1.0 - math.exp(x1), sub, rays_b, rays_n, h, side)
+    k2, e2 = _snug_eval(a, b, r, 1.0 - math.exp(x2), sub, rays_b, rays_n, h, side)
     for _ in range(refine):
         if e1 < e2:
             hi, x2, k2, e2 = x2, x1, k1, e1
             x1 = hi - g * (hi - lo)
-            k1, e1 = _snug_eval(a, b, r, x1, P, Bp, N, h, side)
+            k1, e1 = _snug_eval(a, b, r, 1.0 - math.exp(x1), sub, rays_b, rays_n, h, side)
         else:
             lo, x1, k1, e1 = x1, x2, k2, e2
             x2 = lo + g * (hi - lo)
-            k2, e2 = _snug_eval(a, b, r, x2, P, Bp, N, h, side)
+            k2, e2 = _snug_eval(a, b, r, 1.0 - math.exp(x2), sub, rays_b, rays_n, h, side)
     if e1 < best_e:
-        best_s, best_k, best_e = x1, k1, e1
+        best_q, best_e = x1, e1
     if e2 < best_e:
-        best_s, best_k, best_e = x2, k2, e2
-    return best_s, best_k, best_e
+        best_q, best_e = x2, e2
+    s2 = min(max(1.0 - math.exp(best_q), 0.0), s)
+    k = _snug_k(a, b, r, 2.0 - 4.0 * s2 * s2, full, h)  # every point, at the chosen s'
+    return s2, k, best_e, full[n_arc:].copy()
 
 
-def snug_shape(a: float, b: float, s: float, r: float, offset: np.ndarray, boundary: np.ndarray,
-               normals: np.ndarray, grid: int = 16, refine: int = 12, h: float = 1e-9, side: float = 1.0):
-    """``(s', k, excess)`` for :meth:`navigation.geometry.Squircle.grow_snug`: over ``s'`` in
-    ``[0, s]`` (a grid of ``grid + 1`` values, then ``refine`` golden-section steps between the
-    best one's neighbours), the least ``k`` whose squircle (half extents ``a + k r + h``,
-    ``b + k r + h``, parameter ``s'``) contains the ``offset`` points, and of those the one whose
-    largest reach beyond the ``r``-offset along the ``normals`` at the ``boundary`` points (all
-    in the local frame), or ``side`` times how far its sides moved out (``(k - 1) r``) when that
-    is larger, is least."""
-    return _snug_kernel(float(a), float(b), float(s), float(r), _arr(offset).reshape(-1, 2),
-                        _arr(boundary).reshape(-1, 2), _arr(normals).reshape(-1, 2), int(grid), int(refine), float(h),
-                        float(side))
+def snug_shape(a: float, b: float, s: float, r: float, offset: np.ndarray, m: int = 129, grid: int = 4,
+               refine: int = 8, h: float = 1e-9, side: float = 1.0):
+    """``(s', k, J, corner)`` for :meth:`navigation.geometry.Squircle.grow_snug`, in the
+    squircle's own frame (half extents ``a, b``, parameter ``s``, offset ``r``): the least
+    ``k`` whose squircle (half extents ``a + k r + h``, ``b + k r + h``, parameter ``s'``)
+    contains the ``offset (n, 2)`` points (the offset curve at arc-length-even samples) and
+    the offset points of ``m`` boundary points per quadrant even in normal angle
+    (``corner (m, 2)``, first quadrant; the shapes are symmetric about both axes), with ``s'``
+    in ``[0, s]`` minimising ``J``: the larger of the largest reach beyond the ``r``-offset
+    (along every fourth of those normals) and ``side`` times the sides' own move ``(k - 1) r``.
+    Search over ``log(1 - s')``: ``grid + 1`` even steps, then ``refine`` golden-section steps
+    between the best one's neighbours, on every fourth arc-length sample; the final ``k`` on
+    all of them."""
+    return _snug_kernel(float(a), float(b), float(s), float(r), _arr(offset).reshape(-1, 2), int(m), int(grid),
+                        int(refine), float(h), float(side))

@@ -291,19 +291,22 @@ class Squircle:
         corners rounded with radius ``r``, so its grown shape reaches up to ``(sqrt 2 - 1) r``
         beyond the neighbourhood at the corners (10 cm for ``r = 0.25`` and ``s = 0.99``) and a
         passage between a corner and another shape closes early. Here ``s' <= s`` is chosen as
-        well: for each ``s'`` (a grid over ``[0, s]`` refined by golden-section search), the least ``k >= 1`` whose squircle (same centre and rotation, extents grown by
-        ``2 k r``) contains the offset curve at distance ``r`` (``samples`` points, the test of
-        :meth:`grow`), and of those the shape whose largest reach beyond the neighbourhood (along
-        the outward normals at the boundary samples) is least; ``s' = s`` is a candidate,
-        so the result never reaches further than the snug ``k`` at ``s``. Typical largest
-        reach for ``s = 0.99``: 4.1 cm -> 1.0 cm at ``r = 0.13`` (the sides move out by about
-        that much instead). The shape touches the offset curve near its corners, where the
-        curve bulges between its samples by a few micrometres, so a 1e-5 m margin is added on
-        every side and the containment is checked with :meth:`beta` at the ``samples`` offset
-        points and at four times as many (``k`` raised in 1e-6 relative steps until both hold).
-        Compiled search (every sixth normal, a grid of 9 values of ``s'`` and 10 golden-section
-        steps): :func:`navigation._geom_kernel.snug_shape`; memoised per ``(squircle, r,
-        samples)``.
+        well: for each ``s'`` (a grid over ``log(1 - s')`` refined by golden-section search),
+        the least ``k >= 1`` whose squircle (same centre and rotation, extents grown by
+        ``2 k r``) contains the offset curve at distance ``r``, and of those the shape for which
+        the larger of its largest reach beyond the neighbourhood (along the outward normals)
+        and three times its sides' own outward move ``(k - 1) r`` is least (a passage between
+        two flat sides pays the move twice; ``_SNUG_SIDE``); ``s' = s`` is a candidate, so the
+        result never reaches further than the snug ``k`` at ``s``. Largest reach for
+        ``s = 0.99``, 0.3 x 0.69 m: 4.1 -> 1.5 cm at ``r = 0.13`` (sides 0.5 cm out), 8.0 ->
+        2.4 cm at ``r = 0.25`` (0.8 cm out). Containment is tested at the ``samples`` offset
+        points (even in arc length, as :meth:`grow`) and at the offset points of 129 boundary
+        points per quadrant even in the normal's angle (a sharp corner has little arc length but
+        turns the normal by 90 degrees); between them the curve bulges by micrometres, so a
+        1e-5 m margin is added on every side, and the result is checked again with :meth:`beta`
+        at both sets (``k`` raised in 1e-6 relative steps until it holds). Compiled search (over
+        ``log(1 - s')``): :func:`navigation._geom_kernel.snug_shape`; memoised per
+        ``(squircle, r, samples)``.
 
         Raises
         ------
@@ -385,21 +388,19 @@ _SNUG_MARGIN = 1e-5  # m on every side: the offset curve between its samples (me
 @functools.lru_cache(maxsize=8192)
 def _grow_snug(sq: Squircle, r: float, samples: int) -> Squircle:
     """Memoised :meth:`Squircle.grow_snug` (``r > 0``)."""
-    b = sq.boundary_points(samples)
     p = sq.offset_points(r, samples)
     ct, st = math.cos(sq.theta), math.sin(sq.theta)
-    rot = np.array([[ct, -st], [st, ct]])  # row vectors times rot: world -> local
+    rot = np.array([[ct, -st], [st, ct]])  # row vectors times rot: world -> own frame
     c = np.asarray(sq.center)
-    bl, pl = (b - c) @ rot, (p - c) @ rot
-    s2, k, _ = _geom_kernel.snug_shape(sq.width / 2.0, sq.height / 2.0, sq.s, r, pl, bl[::6], (pl - bl)[::6] / r,
-                                       grid=8, refine=10, side=_SNUG_SIDE)
+    s2, k, _, corner = _geom_kernel.snug_shape(sq.width / 2.0, sq.height / 2.0, sq.s, r, (p - c) @ rot,
+                                               side=_SNUG_SIDE)
     if not math.isfinite(k):  # pragma: no cover - s' = s always has a finite k
         return sq.grow(r, samples)
-    dense = sq.offset_points(r, 4 * samples)
+    corners = np.concatenate([corner * f for f in ((1.0, 1.0), (-1.0, 1.0), (-1.0, -1.0), (1.0, -1.0))]) @ rot.T + c
     for _ in range(60):
         ext = 2.0 * (k * r + _SNUG_MARGIN)
         cand = Squircle(sq.center, sq.width + ext, sq.height + ext, sq.theta, float(s2))
-        if np.all(cand.beta(p) <= 0.0) and np.all(cand.beta(dense) <= 0.0):
+        if np.all(cand.beta(p) <= 0.0) and np.all(cand.beta(corners) <= 0.0):
             return cand
         k *= 1.0 + 1e-6
     return sq.grow(r, samples)  # pragma: no cover
