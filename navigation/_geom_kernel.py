@@ -1059,19 +1059,11 @@ def _snug_excess(a, b, r, c, k, Bp, N, h):
 
 
 @numba.njit(inline="always", **_JIT)
-def _local_point(a, b, s, psi):
-    """The boundary point at the boundary angle ``psi`` of the squircle with half extents
-    ``a, b`` in its own frame (:func:`point_xy_cs`)."""
-    ux, uy = math.cos(psi), math.sin(psi)
-    m = ux * uy
-    rho = math.sqrt(2.0 / (1.0 + math.sqrt(max(1.0 - 4.0 * s * s * m * m, 0.0))))
-    return rho * ux * a, rho * uy * b
-
-
-@numba.njit(inline="always", **_JIT)
-def _normal_angle(a, b, c, s, psi):
-    x, y = _local_point(a, b, s, psi)
-    gx, gy = _gauge2_dx(x, y, a, b, c)
+def _normal_angle(L, c, psi):
+    """The angle of the outward normal at the boundary angle ``psi`` of the row ``L[0]`` (a
+    squircle in its own frame: centre 0, rotation 0)."""
+    x, y = point_xy(L, 0, psi)
+    gx, gy = _gauge2_dx(x, y, L[0, 4], L[0, 5], c)
     return math.atan2(gy, gx)
 
 
@@ -1084,11 +1076,13 @@ def _normal_samples(a, b, s, m):
     little arc length but turns its normal by 90 degrees: samples even in arc length leave it
     sparse, these do not."""
     c = 2.0 - 4.0 * s * s
+    L = np.empty((1, 7))  # the squircle in its own frame, a packed row for point_xy
+    L[0, 0], L[0, 1], L[0, 2], L[0, 3], L[0, 4], L[0, 5], L[0, 6] = 0.0, 0.0, 1.0, 0.0, a, b, s
     G = 256
     Bp = np.empty((m, 2))
     N = np.empty((m, 2))
     i = 0
-    a_hi = _normal_angle(a, b, c, s, 0.5 * math.pi / G)
+    a_hi = _normal_angle(L, c, 0.5 * math.pi / G)
     for j in range(m):
         phi = 0.5 * math.pi * j / (m - 1)
         if j == 0:
@@ -1098,16 +1092,16 @@ def _normal_samples(a, b, s, m):
         else:
             while a_hi < phi and i < G - 1:
                 i += 1
-                a_hi = _normal_angle(a, b, c, s, 0.5 * math.pi * (i + 1) / G)
+                a_hi = _normal_angle(L, c, 0.5 * math.pi * (i + 1) / G)
             lo, hi = 0.5 * math.pi * i / G, 0.5 * math.pi * (i + 1) / G
             for _ in range(12):
                 psi = 0.5 * (lo + hi)
-                if _normal_angle(a, b, c, s, psi) < phi:
+                if _normal_angle(L, c, psi) < phi:
                     lo = psi
                 else:
                     hi = psi
             psi = 0.5 * (lo + hi)
-        x, y = _local_point(a, b, s, psi)
+        x, y = point_xy(L, 0, psi)
         gx, gy = _gauge2_dx(x, y, a, b, c)
         g = math.sqrt(gx * gx + gy * gy)
         Bp[j, 0], Bp[j, 1], N[j, 0], N[j, 1] = x, y, gx / g, gy / g
@@ -1146,29 +1140,29 @@ def _snug_kernel(a, b, s, r, arc, m, grid, refine, h, side):
         sub[n_sub + j] = full[n_arc + j]
     rays_b, rays_n = Bn[::4].copy(), Nn[::4].copy()
     q0 = math.log(max(1.0 - s, 1e-12))
-    best_q, (best_k, best_e) = q0, _snug_eval(a, b, r, s, sub, rays_b, rays_n, h, side)
+    best_q, best_e = q0, _snug_eval(a, b, r, s, sub, rays_b, rays_n, h, side)[1]
     j_best = 0
     for j in range(1, grid + 1):
         q = q0 * (1.0 - j / grid)
-        k, e = _snug_eval(a, b, r, 1.0 - math.exp(q), sub, rays_b, rays_n, h, side)
+        e = _snug_eval(a, b, r, 1.0 - math.exp(q), sub, rays_b, rays_n, h, side)[1]
         if e < best_e:
-            best_q, best_k, best_e, j_best = q, k, e, j
+            best_q, best_e, j_best = q, e, j
     # golden-section search between the grid neighbours of the best
     lo = q0 * (1.0 - max(j_best - 1, 0) / grid)
     hi = q0 * (1.0 - min(j_best + 1, grid) / grid)
     g = 0.5 * (math.sqrt(5.0) - 1.0)
     x1, x2 = hi - g * (hi - lo), lo + g * (hi - lo)
-    k1, e1 = _snug_eval(a, b, r, 1.0 - math.exp(x1), sub, rays_b, rays_n, h, side)
-    k2, e2 = _snug_eval(a, b, r, 1.0 - math.exp(x2), sub, rays_b, rays_n, h, side)
+    e1 = _snug_eval(a, b, r, 1.0 - math.exp(x1), sub, rays_b, rays_n, h, side)[1]
+    e2 = _snug_eval(a, b, r, 1.0 - math.exp(x2), sub, rays_b, rays_n, h, side)[1]
     for _ in range(refine):
         if e1 < e2:
-            hi, x2, k2, e2 = x2, x1, k1, e1
+            hi, x2, e2 = x2, x1, e1
             x1 = hi - g * (hi - lo)
-            k1, e1 = _snug_eval(a, b, r, 1.0 - math.exp(x1), sub, rays_b, rays_n, h, side)
+            e1 = _snug_eval(a, b, r, 1.0 - math.exp(x1), sub, rays_b, rays_n, h, side)[1]
         else:
-            lo, x1, k1, e1 = x1, x2, k2, e2
+            lo, x1, e1 = x1, x2, e2
             x2 = lo + g * (hi - lo)
-            k2, e2 = _snug_eval(a, b, r, 1.0 - math.exp(x2), sub, rays_b, rays_n, h, side)
+            e2 = _snug_eval(a, b, r, 1.0 - math.exp(x2), sub, rays_b, rays_n, h, side)[1]
     if e1 < best_e:
         best_q, best_e = x1, e1
     if e2 < best_e:
