@@ -33,6 +33,8 @@ The map starts knowing only the workspace and grows from scans:
 5. **Clearances**: an estimate is trimmed (the face towards the disc moved back, the far side
    kept) so that, inflated, it neither contains the robot's position (robot disc kept clear)
    nor reaches into a region disc; an estimate that cannot be trimmed is removed, logged.
+   This holds for the covers the forest repairs below make too (a merged pair, a grown face):
+   they are trimmed clear of the region discs after each repair, as a refit's estimates are.
 6. **Forest check**: the inflated estimates (grown by the robot radius with
    :func:`perception.fit.inflate`) with the workspace shrunk by the radius must be accepted by
    :func:`navigation.build_forest` (checked with :func:`navigation.forest.check_forest`, which
@@ -1002,6 +1004,25 @@ class ObstacleMap:
                         any_trim = True
         return any_trim
 
+    def _clear_regions(self, ids, proposed, changed, removed, notes) -> None:
+        """Trim the estimates ``ids`` clear of the region discs as a refit does (decompose
+        rather than uncover: the returns a trim left outside get estimates of their own, trimmed
+        too). For the covers the forest repairs make: two estimates merged to break a cycle can
+        span a region between them (``random520``: two bars over ``r1`` merged into one
+        squircle over it, and the robot stopped blocked with ``r1`` walled off)."""
+        trimmed = []
+        for i in ids:
+            lab = self._resolve(proposed[i].cluster) if i in proposed else None
+            if self._trim_regions([i], proposed, changed, removed):
+                trimmed.append(lab)
+        add = []
+        for lab in dict.fromkeys(lab for lab in trimmed if lab is not None):
+            add += self._recover(lab, proposed, changed)
+        self._trim_regions(add, proposed, changed, removed)
+        if trimmed:
+            notes.append(f"trimmed {len(trimmed)} repaired estimate(s) clear of the region discs"
+                         + (f", fitted {len(add)} estimate(s) to the returns left outside" if add else ""))
+
     def _clear_robot(self, pose, proposed, changed, removed, notes, only=None, recover: bool = True) -> None:
         """Trim every estimate clear of the robot disc. Decompose rather than uncover (as for the
         regions): returns a trim left more than ``refit_tol`` outside their cluster's estimates
@@ -1466,6 +1487,8 @@ class ObstacleMap:
             self.stats["repairs"] += 1
             if not self._repair(err, sub, proposed, changed, removed, notes):
                 break
+            # a repair's cover (a merged pair, a grown face) obeys the clearances too
+            self._clear_regions([i for i in changed if i in proposed], proposed, changed, removed, notes)
             if pose is not None:
                 self._clear_robot(pose, proposed, changed, removed, notes)
         else:

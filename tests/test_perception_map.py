@@ -327,6 +327,50 @@ def test_an_estimate_growing_by_repeated_cycle_merges_is_reverted(monkeypatch):
     assert (added, updated, gone) == ((), (), ()) and not omap.obstacles()
 
 
+def test_a_cycle_merge_over_a_region_is_trimmed_clear_of_its_disc(monkeypatch):
+    """The cover of two estimates merged to break a cycle obeys the region clearance as a
+    refit does (``random520``: two bars over ``r1`` merged into one squircle over the region,
+    which walled it off and stopped the robot blocked). Two bars meeting in a V with a region
+    disc inside it; the forest check reports a cycle through them once: the merged squircle
+    is trimmed until, inflated, it keeps clear of the disc grown by the radius."""
+    from navigation.geometry import Squircle
+
+    from perception.fit import inflate
+    from perception.map import Estimate
+
+    omap = ObstacleMap.from_world(shared_world("office"))
+    r = omap.radius
+    c = np.array([6.0, 3.0])
+    omap.regions = [(c, 0.15)]
+
+    def est(i, sign):  # an arm of the V from (6.0, 2.4), 1 m long, at 45 degrees
+        a = math.pi / 2 + sign * math.pi / 4
+        sq = Squircle((6.0 + 0.5 * math.cos(a), 2.4 + 0.5 * math.sin(a)), 1.0, 0.15, a, 0.99)
+        return Estimate(i, sq, inflate(sq, r), 0)
+
+    calls = []
+
+    def validate(proposed, seeds):
+        sub = sorted(proposed)
+        calls.append(sub)
+        if len(calls) == 1:
+            return navigation.ForestError("cycle", obstacles=(0, 1), rule="cycle"), sub
+        return None, sub
+
+    monkeypatch.setattr(omap, "_validate", validate)
+    proposed, notes = {0: est(0, 1), 1: est(1, -1)}, []
+    assert all(e.squircle.distance(c) > 0.15 + r + 0.05 for e in proposed.values())
+    # the merged cover alone would reach into the disc (the bug this guards against)
+    merged = dict(proposed)
+    assert omap._merge(merged, 0, 1, set(), set()) and merged[0].inflated.beta(c) <= 0
+    omap._commit(0.0, proposed, {0, 1}, set(), notes, None)
+    assert any(n.startswith("merged estimates 0 and 1") for n in notes), notes
+    assert any("clear of the region discs" in n for n in notes), notes
+    assert proposed, notes
+    for e in proposed.values():
+        assert e.inflated.beta(c) > 0 and float(e.squircle.distance(c)) >= 0.15 + r, e
+
+
 def _cert_map():
     """An office map and a helper making estimates from inflated squircles."""
     from perception.map import Estimate
