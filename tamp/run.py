@@ -40,7 +40,10 @@ def prepare(notice=None) -> float:
     (``gc.freeze``): it never becomes garbage, and a full collection that scans it (~150 000
     objects, about 100 ms) would otherwise stall some tick. ``notice(message)`` is called once if
     the compilation takes longer than a second (the first run on a machine). Returns the
-    seconds it took."""
+    seconds it took. The heap is unfrozen at exit (``atexit``): objects left frozen are never
+    freed, and extension modules that check for leaks at teardown report them (nanobind's
+    "leaked instances" from OMPL after ``python -m benchmarks.evaluation``)."""
+    import atexit
     import gc
     import threading
 
@@ -57,7 +60,14 @@ def prepare(notice=None) -> float:
         timer.cancel()
     gc.collect()
     gc.freeze()
+    global _unfreeze_registered
+    if not _unfreeze_registered:
+        atexit.register(gc.unfreeze)
+        _unfreeze_registered = True
     return seconds
+
+
+_unfreeze_registered = False
 
 
 def _oscillation(omegas, distance: float) -> float:

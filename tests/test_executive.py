@@ -817,6 +817,21 @@ def test_main_returns_two_on_bad_arguments(capsys):
     assert capsys.readouterr().err.startswith("error: ")
 
 
+def test_prepare_unfreezes_the_heap_at_exit():
+    """``tamp.run.prepare`` freezes the start-up heap (``gc.freeze``) and unfreezes it at exit:
+    objects left frozen are never freed, and an extension that checks for leaks at teardown
+    reports them (nanobind's "leaked instances" from OMPL after the evaluation suite)."""
+    code = ("import atexit, gc\n"
+            "atexit.register(lambda: print('frozen at exit', gc.get_freeze_count()))\n"
+            "from tamp.run import prepare\n"
+            "prepare(); prepare()\n"
+            "print('frozen', gc.get_freeze_count() > 0)\n")
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr
+    assert "frozen True" in out.stdout and "frozen at exit 0" in out.stdout, out.stdout
+    assert "leaked" not in out.stderr, out.stderr
+
+
 def test_known_obstacles_that_are_not_a_forest_are_left_to_perception():
     # cluttered20 grown by the robot radius: obstacles 0, 1, 2 overlap in a cycle
     ex = Executive(shared_world("cluttered20"), known=True)
