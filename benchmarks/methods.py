@@ -210,12 +210,14 @@ class RRTStarExecutive(_FixedPlanMixin, Executive):
     Class attributes (documented in ``docs/evaluation.md``): ``budget`` s of RRT* per query
     (doubled once when no exact solution is found), obstacles grown by ``radius + margin``,
     pure pursuit with look-ahead ``lookahead`` m and speed ``v_max cos(alpha)``, turning in
-    place when the look-ahead point is more than 90 degrees off the heading.
+    place when the look-ahead point is more than ``rotate_angle`` off the heading (Nav2's
+    regulated pure pursuit rotates to the path's heading beyond 0.785 rad by default).
     """
 
     budget = 1.0
     margin = 0.05
     lookahead = 0.25
+    rotate_angle = math.pi / 4
 
     def _valid_fn(self, p, margin):
         r = self.radius + margin
@@ -223,14 +225,21 @@ class RRTStarExecutive(_FixedPlanMixin, Executive):
         ws = pack([self.world.workspace.grow(-r)])
         px, py = float(p[0]), float(p[1])
         near = 0.1 + margin  # the robot may sit in the margin of a fresh estimate: let it leave
+        # ... leave, not go deeper: next to the robot a state inside a grown obstacle the robot is
+        # inside too is valid only no deeper than the robot (a path into the obstacle it touches
+        # held random2's robot against it for the whole mission)
+        b0 = beta_rows(rows, np.array([px]), np.array([py])) if rows is not None else None
 
         def valid(x, y):
             xa, ya = np.array([x]), np.array([y])
             if not beta_rows(ws, xa, ya)[0] < 0:
                 return False
-            if rows is None or (x - px) ** 2 + (y - py) ** 2 < near * near:
+            if rows is None:
                 return True
-            return bool((beta_rows(rows, xa, ya) > 0).all())
+            b = beta_rows(rows, xa, ya)
+            if (x - px) ** 2 + (y - py) ** 2 < near * near:
+                return bool(((b > 0) | ((b0 <= 0) & (b >= b0))).all())
+            return bool((b > 0).all())
 
         return valid
 
@@ -293,7 +302,7 @@ class RRTStarExecutive(_FixedPlanMixin, Executive):
         dist_goal = float(np.linalg.norm(pts[-1] - q))
         alpha = math.atan2(math.sin(math.atan2(dy, dx) - p[2]), math.cos(math.atan2(dy, dx) - p[2]))
         vmax, wmax = self.control.v_max, self.control.omega_max
-        if abs(alpha) > math.pi / 2:
+        if abs(alpha) > self.rotate_angle:
             return 0.0, math.copysign(wmax, alpha)
         v = min(vmax, self.control.k_v * math.tanh(dist_goal)) * math.cos(alpha)
         L = max(float(np.hypot(dx, dy)), 1e-6)

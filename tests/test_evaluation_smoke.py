@@ -76,3 +76,42 @@ def test_chatter_sources_attribute_each_flip_to_the_change_on_its_tick():
     assert src["per_m"]["handover"] == pytest.approx(1 / dist)
     assert chatter(poses, dt) == pytest.approx(3 / dist)
     assert chatter_sources(poses[:2], waypoints[:2], replanned[:2], dt)["tracking"] == 0  # too short: no flips
+
+
+def _rrt_executive():
+    from benchmarks.methods import BASELINE_CONFIG, RRTStarExecutive
+
+    from .conftest import shared_world
+
+    # simple's obstacles known: among them a disc of radius 0.2 m at (1.0, 1.5)
+    return RRTStarExecutive(shared_world("simple"), known=True, config=BASELINE_CONFIG)
+
+
+def test_rrt_star_follower_turns_in_place_beyond_the_rotate_angle():
+    """The RRT* baseline's pure pursuit (no OMPL needed) turns in place when the look-ahead
+    point is more than ``rotate_angle`` (45 degrees, Nav2's default) off the heading, and drives
+    on the arc otherwise: driving forward at 60 degrees off held ``random2``'s robot against the
+    obstacle it faced for the whole mission (2977 contact steps)."""
+    ex = _rrt_executive()
+    ex.leg, ex.wp = ((0.0, 0.0, 0.0), (2.0, 0.0, 0.0)), 1
+    for off, turns in ((math.radians(60), True), (math.radians(30), False), (math.radians(-50), True)):
+        v, w = ex._pursue((0.0, 0.0, -off))
+        if turns:
+            assert v == 0.0 and w == pytest.approx(math.copysign(ex.control.omega_max, off))
+        else:
+            assert v > 0.0 and w > 0.0
+
+
+def test_rrt_star_validity_lets_the_robot_leave_an_obstacle_margin_but_not_go_deeper():
+    """Next to the robot (within ``0.1 + margin``) a state inside the grown obstacle the robot is
+    inside too is valid when no deeper than the robot, invalid when deeper; far from it every
+    state inside a grown obstacle is invalid."""
+    ex = _rrt_executive()
+    r = ex.radius + ex.margin
+    x0 = 1.2 + r - 0.02  # 2 cm inside the disc grown by radius + margin, right of it
+    valid = ex._valid_fn((x0, 1.5, 0.0), ex.margin)
+    assert valid(x0 + 0.05, 1.5)  # out of the margin: leaving
+    assert valid(x0 + 0.01, 1.5)  # shallower
+    assert not valid(x0 - 0.05, 1.5)  # deeper, next to the robot
+    assert not valid(1.0, 1.3 - r + 0.02)  # inside the grown obstacle below its centre, far from the robot
+    assert valid(0.5, 2.5)  # the start, in free space
