@@ -211,13 +211,24 @@ class RRTStarExecutive(_FixedPlanMixin, Executive):
     (doubled once when no exact solution is found), obstacles grown by ``radius + margin``,
     pure pursuit with look-ahead ``lookahead`` m and speed ``v_max cos(alpha)``, turning in
     place when the look-ahead point is more than ``rotate_angle`` off the heading (Nav2's
-    regulated pure pursuit rotates to the path's heading beyond 0.785 rad by default).
+    regulated pure pursuit rotates to the path's heading beyond 0.785 rad by default); a robot
+    held still for ``stuck_time`` while driving (against an obstacle the map missed) backs up for
+    ``backup_time`` at ``backup_speed`` and re-plans (a recovery, as Nav2's behaviour tree runs).
     """
 
     budget = 1.0
     margin = 0.05
     lookahead = 0.25
     rotate_angle = math.pi / 4
+    stuck_time = 1.0  # s held still while driving before the recovery (Nav2's progress checker: 10 s)
+    backup_speed = -0.1  # m/s and s of the recovery's back-up (Nav2's BackUp: 0.15 m at 0.025 m/s)
+    backup_time = 1.0
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.recoveries = 0  # back-ups (see the class doc)
+        self._dirty = False
+        self._last_q, self._last_v, self._still_since, self._backing_until = None, 0.0, 0.0, None
 
     def _valid_fn(self, p, margin):
         r = self.radius + margin
@@ -266,7 +277,24 @@ class RRTStarExecutive(_FixedPlanMixin, Executive):
         self._dirty = True
 
     def _command(self, p):
-        if getattr(self, "_dirty", False) and self.target is not None:
+        # recovery: a robot held still while driving (the simulator stops it at a contact) backs
+        # up for ``backup_time`` at ``backup_speed``, then re-plans from where it is
+        q = (float(p[0]), float(p[1]))
+        last, self._last_q = self._last_q, q
+        if last is None or math.dist(q, last) > 1e-4 or self._last_v <= 0.0:
+            self._still_since = self.time
+        if self._backing_until is not None and self.time < self._backing_until - 1e-9:
+            self._last_v = self.backup_speed
+            return self.backup_speed, 0.0
+        if self._backing_until is not None:
+            self._backing_until, self._dirty = None, True  # backed up: re-plan from here
+        elif self.time - self._still_since >= self.stuck_time - 1e-9:
+            self.recoveries += 1
+            self._backing_until = self.time + self.backup_time
+            self._note(f"held still for {self.stuck_time:g} s while driving: backing up, then re-planning")
+            self._last_v = self.backup_speed
+            return self.backup_speed, 0.0
+        if self._dirty and self.target is not None:
             t0 = time.perf_counter()
             self._set_leg(p, self.target)
             dt = time.perf_counter() - t0
@@ -274,8 +302,11 @@ class RRTStarExecutive(_FixedPlanMixin, Executive):
             self.replan_times.append(dt)
             self.replans += 1
             if self.state is not ExecutiveState.EXECUTING:
+                self._last_v = 0.0
                 return 0.0, 0.0
-        return self._pursue(p)
+        v, w = self._pursue(p)
+        self._last_v = v
+        return v, w
 
     def _pursue(self, p):
         """Pure pursuit along the leg: look-ahead point ``lookahead`` m beyond the projection."""

@@ -115,3 +115,33 @@ def test_rrt_star_validity_lets_the_robot_leave_an_obstacle_margin_but_not_go_de
     assert not valid(x0 - 0.05, 1.5)  # deeper, next to the robot
     assert not valid(1.0, 1.3 - r + 0.02)  # inside the grown obstacle below its centre, far from the robot
     assert valid(0.5, 2.5)  # the start, in free space
+
+
+def test_rrt_star_backs_up_and_replans_when_held_still_while_driving(monkeypatch):
+    """The RRT* baseline's recovery: a robot that does not move for ``stuck_time`` while its
+    follower drives (the simulator holds it at a contact the map missed) backs up for
+    ``backup_time`` at ``backup_speed``, then re-plans from where it is, once."""
+    from tamp.executive import ExecutiveState
+
+    ex = _rrt_executive()
+    ex.leg, ex.wp, ex.target, ex.state = ((0.5, 2.5, 0.0), (2.0, 2.5, 0.0)), 1, "a", ExecutiveState.EXECUTING
+    calls = []
+
+    def set_leg(p, target):  # the re-plan (OMPL not needed): a new leg, no longer dirty
+        calls.append((tuple(p), target))
+        ex._dirty = False
+
+    monkeypatch.setattr(ex, "_set_leg", set_leg)
+    pose = (0.5, 2.5, 0.0)  # held still
+    cmds = []
+    for k in range(26):
+        ex.time = 0.1 * k
+        cmds.append((round(ex.time, 1), ex._command(pose)))
+    stuck = round(ex.stuck_time, 1)
+    for t, (v, w) in cmds:
+        if t < stuck:
+            assert v > 0.0, (t, v)  # driving, not yet held long enough
+        elif t < stuck + ex.backup_time - 1e-9:
+            assert (v, w) == (ex.backup_speed, 0.0), (t, v, w)
+    assert len(calls) == 1 and calls[0] == (pose, "a")  # re-planned once, after the back-up
+    assert ex.recoveries == 1 and cmds[-1][1][0] > 0.0
