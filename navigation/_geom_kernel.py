@@ -1110,13 +1110,13 @@ def _normal_samples(a, b, s, m):
 
 @numba.njit(**_JIT)
 def _snug_eval(a, b, r, s2, P, Bp, N, h, side):
-    """``(k, J)`` at ``s'`` = ``s2``: the snug ``k`` and the objective ``J``, the larger of the
-    largest reach and ``side`` times the sides' own ``(k - 1) r``."""
+    """The objective ``J`` at ``s'`` = ``s2``: the larger of the largest reach of the snug
+    ``k``'s squircle and ``side`` times the sides' own ``(k - 1) r`` (``inf`` without a ``k``)."""
     c = 2.0 - 4.0 * s2 * s2
     k = _snug_k(a, b, r, c, P, h)
     if not math.isfinite(k):
-        return k, math.inf
-    return k, max(_snug_excess(a, b, r, c, k, Bp, N, h), side * (k - 1.0) * r)
+        return math.inf
+    return max(_snug_excess(a, b, r, c, k, Bp, N, h), side * (k - 1.0) * r)
 
 
 @numba.njit(**_JIT)
@@ -1140,11 +1140,11 @@ def _snug_kernel(a, b, s, r, arc, m, grid, refine, h, side):
         sub[n_sub + j] = full[n_arc + j]
     rays_b, rays_n = Bn[::4].copy(), Nn[::4].copy()
     q0 = math.log(max(1.0 - s, 1e-12))
-    best_q, best_e = q0, _snug_eval(a, b, r, s, sub, rays_b, rays_n, h, side)[1]
+    best_q, best_e = q0, _snug_eval(a, b, r, s, sub, rays_b, rays_n, h, side)
     j_best = 0
     for j in range(1, grid + 1):
         q = q0 * (1.0 - j / grid)
-        e = _snug_eval(a, b, r, 1.0 - math.exp(q), sub, rays_b, rays_n, h, side)[1]
+        e = _snug_eval(a, b, r, 1.0 - math.exp(q), sub, rays_b, rays_n, h, side)
         if e < best_e:
             best_q, best_e, j_best = q, e, j
     # golden-section search between the grid neighbours of the best
@@ -1152,17 +1152,17 @@ def _snug_kernel(a, b, s, r, arc, m, grid, refine, h, side):
     hi = q0 * (1.0 - min(j_best + 1, grid) / grid)
     g = 0.5 * (math.sqrt(5.0) - 1.0)
     x1, x2 = hi - g * (hi - lo), lo + g * (hi - lo)
-    e1 = _snug_eval(a, b, r, 1.0 - math.exp(x1), sub, rays_b, rays_n, h, side)[1]
-    e2 = _snug_eval(a, b, r, 1.0 - math.exp(x2), sub, rays_b, rays_n, h, side)[1]
+    e1 = _snug_eval(a, b, r, 1.0 - math.exp(x1), sub, rays_b, rays_n, h, side)
+    e2 = _snug_eval(a, b, r, 1.0 - math.exp(x2), sub, rays_b, rays_n, h, side)
     for _ in range(refine):
         if e1 < e2:
             hi, x2, e2 = x2, x1, e1
             x1 = hi - g * (hi - lo)
-            e1 = _snug_eval(a, b, r, 1.0 - math.exp(x1), sub, rays_b, rays_n, h, side)[1]
+            e1 = _snug_eval(a, b, r, 1.0 - math.exp(x1), sub, rays_b, rays_n, h, side)
         else:
             lo, x1, e1 = x1, x2, e2
             x2 = lo + g * (hi - lo)
-            e2 = _snug_eval(a, b, r, 1.0 - math.exp(x2), sub, rays_b, rays_n, h, side)[1]
+            e2 = _snug_eval(a, b, r, 1.0 - math.exp(x2), sub, rays_b, rays_n, h, side)
     if e1 < best_e:
         best_q, best_e = x1, e1
     if e2 < best_e:

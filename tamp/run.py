@@ -60,14 +60,9 @@ def prepare(notice=None) -> float:
         timer.cancel()
     gc.collect()
     gc.freeze()
-    global _unfreeze_registered
-    if not _unfreeze_registered:
-        atexit.register(gc.unfreeze)
-        _unfreeze_registered = True
+    atexit.unregister(gc.unfreeze)  # (once however often prepare() is called)
+    atexit.register(gc.unfreeze)
     return seconds
-
-
-_unfreeze_registered = False
 
 
 def _oscillation(omegas, distance: float) -> float:
