@@ -75,12 +75,16 @@ def test_executive_benchmark_quick_with_jitter_and_overrides(tmp_path, capsys):
     from benchmarks import executive as exe_bench
 
     out = tmp_path / "results"
-    assert exe_bench.main(["--quick", "--jitter", "2", "--set", "align_angle=0", "--set", "seen_share=0.8",
-                           "--out", str(out)]) == 0
+    assert exe_bench.main(["--quick", "--repeat", "2", "--jitter", "2", "--set", "align_angle=0", "--set",
+                           "seen_share=0.8", "--out", str(out)]) == 0
     data = json.loads((out / "executive_quick.json").read_text())
     assert data["config"] == {"align_angle": 0, "seen_share": 0.8}
     (row,) = data["rows"]
     assert row["world"] == "simple" and row["completed"] and row["collisions"] == 0
+    # two timed runs of the same (deterministic) mission: one route, the median of their timings
+    assert data["repeat"] == 2 and row["repeats"] == 2 and not row["route_differs"]
+    assert len(row["tick_cpu_p95_runs"]) == 2
+    assert row["tick_cpu_p95"] == pytest.approx(sum(row["tick_cpu_p95_runs"]) / 2, rel=1e-12)
     jit = data["jitter"]
     assert [(r["world"], r["k"]) for r in jit] == [("simple", 1), ("simple", 2)]
     assert all(r["completed"] and r["collisions"] == 0 and r["ratio"] > 0.9 for r in jit)
@@ -92,6 +96,8 @@ def test_executive_benchmark_quick_with_jitter_and_overrides(tmp_path, capsys):
     assert moved != tuple(world.robot.start) and abs(moved[0] - world.robot.start[0]) < 0.05
     with pytest.raises(SystemExit, match="NAME=VALUE"):
         exe_bench.main(["--quick", "--set", "no_such_field=1", "--out", str(out)])
+    with pytest.raises(SystemExit):
+        exe_bench.main(["--quick", "--repeat", "0", "--out", str(out)])
     with pytest.raises(SystemExit, match="align_angle"):
         exe_bench.main(["--quick", "--set", "align_angle=2.0", "--out", str(out)])
 
@@ -200,3 +206,23 @@ def test_soak_benchmark_quick_patrols_and_reports_every_window(tmp_path, capsys)
     assert capsys.readouterr().out.strip() == table.strip()
     with pytest.raises(SystemExit, match="window"):
         soak.main(["--world", "simple", "--duration", "10", "--window", "20", "--out", str(out)])
+
+
+def test_executive_benchmark_repeats_report_median_timings_and_flag_differing_routes():
+    """``--repeat N``: a world's row keeps its first run's route and counts, every timing field
+    is the median over the runs (each run's tick p95 listed), and the targets are judged on the
+    medians; runs that took different routes are flagged."""
+    from benchmarks import executive as exe_bench
+
+    def run(p95, distance=10.0):
+        r = {k: 0.001 for k in exe_bench._TIMED}
+        r.update(world="w", distance=distance, visited=["a", "b"], ratio=1.1, tick_p95=p95, tick_cpu_p95=p95,
+                 replans=3)
+        return r
+
+    row = exe_bench._merge_repeats([run(0.019), run(0.026), run(0.020)])
+    assert row["tick_cpu_p95"] == 0.020 and row["tick_p95"] == 0.020 and row["repeats"] == 3
+    assert row["tick_cpu_p95_runs"] == [0.019, 0.026, 0.020] and not row["route_differs"]
+    assert row["pass"]["tick_cpu"] and row["pass"]["distance"] and row["replans"] == 3
+    row = exe_bench._merge_repeats([run(0.019), run(0.021), run(0.026, distance=11.0)])
+    assert row["route_differs"] and row["distance"] == 10.0 and not row["pass"]["tick_cpu"]
