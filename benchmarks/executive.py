@@ -329,7 +329,6 @@ def render_markdown(result: dict) -> str:
         runs = " / ".join(f"{x * 1e3:.1f}" for x in r.get("tick_cpu_p95_runs", ()))
         if r.get("route_differs"):
             runs += " (routes differ: first run's row)"
-
         tour = "-" if r["tour"] is None else f"{r['tour']:.2f}"
         ratio = "-" if r["ratio"] is None else f"{r['ratio']:.2f}"
         lines.append(
