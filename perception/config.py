@@ -62,6 +62,8 @@ class PerceptionConfig:
         Returns within this of the workspace boundary are the boundary itself: ``0.01 + 5 sigma``
         (a noisy return of the boundary beyond 3 sigma formed a phantom estimate on it in 23 of the
         33 noisy drives of the slow perception test; beyond 5 sigma: about 3e-7 per return).
+        With noise, a return in the band is dropped only when its beam, continued by
+        ``ws_band``, leaves the workspace (``ObstacleMap``, step 1).
     ws_touch :
         A cluster with points within this of the workspace boundary is extended through it
         (a wall on the boundary): ``link + 0.01 + 3 sigma`` (the ``3 sigma`` band of before; with

@@ -5,7 +5,9 @@ The map starts knowing only the workspace and grows from scans:
 1. **Ingestion** (:mod:`perception.ingest`): a scan and the pose at its stamp become world
    points; bad messages are rejected with a :class:`~perception.errors.ScanError` (logged), NaN
    beams are trimmed (logged). Returns within ``ws_band`` of the workspace boundary (distance
-   to first order, not the radial error) are the boundary itself and are dropped.
+   to first order, not the radial error) are the boundary itself and are dropped; with range
+   noise (a band of ``0.01 + 5 sigma``) only those whose beam meets the boundary within
+   ``ws_band`` beyond them: an obstacle's face near the boundary seen obliquely stays.
 2. **Evidence**: returns are averaged in ``voxel`` cells (with the directions they were seen
    from); the beams' paths, up to ``free_margin`` before their returns (``range_max`` for no
    return), mark ``free_cell`` cells as free.
@@ -540,6 +542,14 @@ class ObstacleMap:
         keep = np.ones(len(pts), bool)
         if len(pts):
             keep &= self._boundary_distance(pts) > cfg.ws_band
+            if scan is not None and cfg.noise_std > 0 and not keep.all():
+                # with range noise the band is wide (5 sigma): a return in it is the boundary's
+                # only if its beam meets the boundary within the band's reach beyond it; the
+                # face of an obstacle near the boundary seen obliquely stays
+                band = np.flatnonzero(~keep)
+                ang = scan.angles[np.nonzero(scan.hit)[0][band]]
+                beyond = pts[band] + cfg.ws_band * np.stack((np.cos(ang), np.sin(ang)), axis=1)
+                keep[band] = self._boundary_distance(beyond) > 0.0
             if pose is not None:
                 keep &= np.hypot(pts[:, 0] - pose[0], pts[:, 1] - pose[1]) > self.radius
         beam_of = np.nonzero(scan.hit)[0] if scan is not None else None
