@@ -539,20 +539,20 @@ class ObstacleMap:
     def _integrate(self, stamp: float, pose, pts: np.ndarray, scan: Scan | None, notes: list, trimmed: int) -> MapUpdate:
         cfg = self.config
         # --- trim: the workspace boundary itself, returns inside the robot disc, off-grid points
+        beam_of = np.nonzero(scan.hit)[0] if scan is not None else None  # the beam of each return
         keep = np.ones(len(pts), bool)
         if len(pts):
             keep &= self._boundary_distance(pts) > cfg.ws_band
-            if scan is not None and cfg.noise_std > 0 and not keep.all():
+            if beam_of is not None and cfg.noise_std > 0 and not keep.all():
                 # with range noise the band is wide (5 sigma): a return in it is the boundary's
                 # only if its beam meets the boundary within the band's reach beyond it; the
                 # face of an obstacle near the boundary seen obliquely stays
                 band = np.flatnonzero(~keep)
-                ang = scan.angles[np.nonzero(scan.hit)[0][band]]
+                ang = scan.angles[beam_of[band]]
                 beyond = pts[band] + cfg.ws_band * np.stack((np.cos(ang), np.sin(ang)), axis=1)
                 keep[band] = self._boundary_distance(beyond) > 0.0
             if pose is not None:
                 keep &= np.hypot(pts[:, 0] - pose[0], pts[:, 1] - pose[1]) > self.radius
-        beam_of = np.nonzero(scan.hit)[0] if scan is not None else None
         pts_k = pts[keep]
         self.last_returns = pts_k
         if beam_of is not None:
