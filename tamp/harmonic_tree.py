@@ -58,12 +58,11 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import dijkstra
 
 from navigation.errors import TampError
 from navigation.geometry import beta_rows, pack
 
+from ._astar_kernel import astar
 from .roadmap import Roadmap, grown, segments_clear
 
 __all__ = [
@@ -464,7 +463,10 @@ def _heading_graph(rm: Roadmap, H: int, weights: RotationWeights):
         idx_v[mask] = n_v + e_of
         idx_v[goal_pos] = n_v + n_e
         idx_e = ((dst[:, None] * H) + np.arange(H)[None, :]).ravel().astype(np.int32)
-        struct = {"theta": theta, "table": table, "indptr": indptr.astype(np.int32),
+        # the vertex where each (i, h) node and each edge node (at its edge's head) sits: the
+        # A* heuristic's position
+        vertex_of = np.concatenate([rv, dst]).astype(np.intp)
+        struct = {"theta": theta, "table": table, "indptr": indptr.astype(np.int32), "vertex_of": vertex_of,
                   "indices": np.concatenate([idx_v, idx_e]).astype(np.int32), "goal_pos": goal_pos,
                   "mask": mask, "e_of": e_of, "h_of": h_of, "n_v": n_v, "n_e": n_e, "data": {}}
         rm._memo[key] = struct
@@ -483,9 +485,10 @@ def _heading_graph(rm: Roadmap, H: int, weights: RotationWeights):
 
 def _astar(pb: _Problem, weights: RotationWeights, H: int) -> HarmonicTree:
     """Shortest path of eq. 8 from the start pose to the goal pose over ``(vertex, heading)``
-    nodes (:func:`_heading_graph` plus this tree's terminal edges), by Dijkstra's algorithm
-    (``scipy.sparse.csgraph.dijkstra``, compiled). Every edge costs at least its length, so the
-    A* heuristic ``|q - q_G|`` would not change the optimum, only the work.
+    nodes (:func:`_heading_graph` plus this tree's terminal edges), by A* with the heuristic
+    ``|q - q_G|`` (compiled: :func:`tamp._astar_kernel.astar`). Every edge costs at least the
+    distance it moves, so the heuristic is consistent: the optimum of Dijkstra's algorithm,
+    with the search stopped once the goal is settled.
     """
     rm = pb.rm
     w1, w2 = weights.w1, weights.w2
@@ -513,15 +516,13 @@ def _astar(pb: _Problem, weights: RotationWeights, H: int) -> HarmonicTree:
         cols.append(np.array([G]))
         vals.append(np.array([d + w1 * float(_wrap_abs(phi - th0)) + w2 * float(_wrap_abs(phi - thG))]))
     cols, vals = np.concatenate(cols).astype(np.int32), np.concatenate(vals)
-    order = np.argsort(cols, kind="stable")
-    indptr = np.concatenate([struct["indptr"], [struct["indptr"][-1] + len(cols)]]).astype(np.int32)
-    graph = csr_matrix((np.concatenate([data, vals[order]]), np.concatenate([struct["indices"], cols[order]]),
-                        indptr), shape=(S + 1, S + 1))
-    dist, pred = dijkstra(graph, directed=True, indices=S, return_predecessors=True)
-    if not np.isfinite(dist[G]):
+    dv = np.hypot(rm.points[:, 0] - qg[0], rm.points[:, 1] - qg[1]) if n else np.zeros(0)
+    h = np.concatenate([dv[struct["vertex_of"]], [0.0, 0.0]])
+    cost, pred, reached = astar(struct["indptr"], struct["indices"], data, cols, vals, h, G)
+    if not math.isfinite(cost):
         raise NoTreePathError(pb.start, pb.goal, TreeFailure.DISCONNECTED,
                               f"{n} roadmap vertices, {len(rm.pairs)} edges")
-    expanded = int(np.count_nonzero(np.isfinite(dist[:n_v])))
+    expanded = int(np.count_nonzero(reached[:n_v]))
     # path reconstruction (edge nodes skipped)
     chain = [G]
     while chain[-1] != S:

@@ -166,6 +166,26 @@ def test_astar_equals_brute_force_dijkstra_random():
     assert compared >= 2
 
 
+def test_astar_stops_at_the_goal_with_dijkstras_cost():
+    """The compiled A* settles the goal before the (vertex, heading) nodes farther away: on the
+    office roadmap a short tree reaches few of the nodes reachable from its start, and the
+    cost is the brute-force Dijkstra's to rounding (the two shortest pairs and the longest)."""
+    world = shared_world("office")
+    rm = Roadmap.from_world(world)
+    poses = _poses(world, np.random.default_rng(7))
+    w = RotationWeights(0.2, 0.1)
+    pairs = sorted(itertools.permutations(poses, 2), key=lambda p: math.dist(poses[p[0]][:2], poses[p[1]][:2]))
+    fractions = []
+    for a, b in pairs[:2] + pairs[-1:]:
+        tree = plan_tree(rm, poses[a], poses[b], w, 4)
+        G = tree_graph(rm, poses[a], poses[b], w, 4)
+        assert tree.cost == pytest.approx(nx.dijkstra_path_length(G, "start", "goal"), rel=1e-12)
+        reachable = sum(1 for v in nx.descendants(G, "start") if isinstance(v, tuple))
+        assert 0 < tree.expanded <= reachable
+        fractions.append(tree.expanded / reachable)
+    assert min(fractions) < 0.5
+
+
 def test_vicinity_limits_edge_length():
     world = shared_world("office")
     rm = Roadmap.from_world(world, RoadmapConfig(vicinity=1.0))
