@@ -27,6 +27,11 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from enum import Enum
 
+import numpy as np
+
+from navigation.errors import TampError
+
+from ._product_kernel import settle
 from .errors import (InvalidRequestError, NoPlanError, UnknownRegionError,
                      UnsatisfiableError)
 from .ltl import ops
@@ -218,50 +223,37 @@ def _nested_dijkstra(prod: Product, costs, sources: Iterable[int], alpha: float,
     ``P(a) + alpha * C(a)``. The outer search stops once ``P >= best`` and each cycle search
     once ``P(a) + alpha * C >= best`` (costs are >= 0), which never changes the optimum."""
     Q, N = prod.Q, prod.N
-    dist = [INF] * (N * Q)
-    pred = [-1] * (N * Q)
-    heap = []
-    for s in sources:
-        dist[s] = 0.0
-        heap.append((0.0, s))
-    heapq.heapify(heap)
-    acc = prod.buchi.accepting
+    ptr, row_t, row_n, accepting = prod.row_arrays()
+    c = np.asarray(costs, dtype=float)
+    if c.shape != (N * N,):
+        raise TampError(f"expected {N * N} map edge costs, got {c.shape}")
+    # the outer Dijkstra, compiled, settles every state; the accepting ones are taken here in
+    # the order it settled them, and the walk stops where the search would (P >= best)
+    dist, pred, order = settle(ptr, row_t, row_n, c, Q, N, np.asarray(list(sources), dtype=np.int64), accepting)
     best, best_a, best_cycle = INF, -1, None
     computed = reused = 0
-    row = prod.row
-    while heap:
-        d, s = heapq.heappop(heap)
-        if d > dist[s]:
-            continue
+    for s in order.tolist():
+        d = float(dist[s])
         if d >= best:
             break
-        n, q = divmod(s, Q)
-        if q in acc:
-            bound = (best - d) / alpha if alpha > 0 else INF
-            cyc = cache.get(s) if cache is not None else None
-            if cyc is not None and (cyc.cost is not None or cyc.lower >= bound):
-                reused += 1
-            else:
-                cyc = _cycle(prod, costs, s, bound)
-                computed += 1
-                if cache is not None:
-                    cache[s] = cyc
-            if cyc.cost is not None and cyc.cost < INF and d + alpha * cyc.cost < best:
-                best, best_a, best_cycle = d + alpha * cyc.cost, s, cyc
-        base = n * N
-        for t, n2 in row(q):
-            nd = d + costs[base + n2]
-            if nd < dist[t]:
-                dist[t] = nd
-                pred[t] = s
-                heapq.heappush(heap, (nd, t))
+        bound = (best - d) / alpha if alpha > 0 else INF
+        cyc = cache.get(s) if cache is not None else None
+        if cyc is not None and (cyc.cost is not None or cyc.lower >= bound):
+            reused += 1
+        else:
+            cyc = _cycle(prod, costs, s, bound)
+            computed += 1
+            if cache is not None:
+                cache[s] = cyc
+        if cyc.cost is not None and cyc.cost < INF and d + alpha * cyc.cost < best:
+            best, best_a, best_cycle = d + alpha * cyc.cost, s, cyc
     if best_cycle is None:
         return None
     path = [best_a]
     while pred[path[-1]] != -1:
-        path.append(pred[path[-1]])
+        path.append(int(pred[path[-1]]))
     path.reverse()
-    return _Lasso(tuple(path), dist[best_a], best_cycle, computed, reused)
+    return _Lasso(tuple(path), float(dist[best_a]), best_cycle, computed, reused)
 
 
 def _invalidated(cyc: _Cycle, changes: Mapping[int, tuple[float, float]], N: int) -> bool:

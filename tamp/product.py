@@ -37,6 +37,8 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
+import numpy as np
+
 from .ltl.automaton import Buchi
 from .navmap import NavigationMap, Node
 
@@ -72,6 +74,7 @@ class Product:
         self._rows: list[tuple[tuple[int, int], ...] | None] = [None] * self.Q
         self._accepting = buchi.accepting
         self.rows_built = 0
+        self._row_arrays = None
 
     # ---- encoding -----------------------------------------------------------------------
     def encode(self, node, q: int) -> int:
@@ -108,6 +111,21 @@ class Product:
             r = self._rows[q] = tuple(out)
             self.rows_built += 1
         return r
+
+    def row_arrays(self):
+        """Every row of :meth:`row` as CSR arrays ``(ptr, t, n')`` (``int64``; row ``q`` is
+        ``ptr[q] .. ptr[q + 1]``) and the accepting mask over automaton states, built once (for
+        the compiled search, :mod:`tamp._product_kernel`)."""
+        arrs = self._row_arrays
+        if arrs is None:
+            rows = [self.row(q) for q in range(self.Q)]
+            ptr = np.zeros(self.Q + 1, dtype=np.int64)
+            ptr[1:] = np.cumsum([len(r) for r in rows])
+            flat = np.array([pair for r in rows for pair in r], dtype=np.int64).reshape(-1, 2)
+            acc = np.zeros(self.Q, dtype=np.bool_)
+            acc[list(self._accepting)] = True
+            arrs = self._row_arrays = (ptr, np.ascontiguousarray(flat[:, 0]), np.ascontiguousarray(flat[:, 1]), acc)
+        return arrs
 
     def successors(self, s: int, costs=None) -> list[tuple[int, float]]:
         """Successors of product state ``s`` with their current weights (``inf`` skipped)."""

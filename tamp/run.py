@@ -36,7 +36,7 @@ OMEGA_DEADBAND = 0.05  #: |omega| below this (rad/s) does not count for the osci
 def prepare(notice=None) -> float:
     """Get a process ready for a long run: compile (or load from numba's cache) every compiled
     kernel the executive uses (navigation's, perception's fit and shapes, the roadmap's, the
-    trees' A*; see
+    trees' A*, the planner's product search; see
     :mod:`navigation.kernels`), then move the start-up heap out of the garbage collector's sight
     (``gc.freeze``): it never becomes garbage, and a full collection that scans it (~150 000
     objects, about 100 ms) would otherwise stall some tick. ``notice(message)`` is called once if
@@ -52,12 +52,13 @@ def prepare(notice=None) -> float:
     from perception._fit_kernel import warm_up as warm_up_fit
 
     from ._astar_kernel import warm_up as warm_up_astar
+    from ._product_kernel import warm_up as warm_up_product
     from ._segment_kernel import warm_up as warm_up_segments
 
     timer = threading.Timer(1.0, notice) if notice is not None else None
     if timer is not None:
         timer.start()
-    seconds = warm_up() + warm_up_fit() + warm_up_segments() + warm_up_astar()
+    seconds = warm_up() + warm_up_fit() + warm_up_segments() + warm_up_astar() + warm_up_product()
     if timer is not None:
         timer.cancel()
     gc.collect()

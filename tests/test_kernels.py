@@ -1,8 +1,8 @@
 """The warm-ups tamp-service calls at start-up (navigation.kernels, perception._fit_kernel with
-perception._shape_kernel, tamp._segment_kernel, tamp._astar_kernel) compile every kernel the construction, the navigation function, the
-simulator's lidar, the obstacle map, the roadmap and the harmonic trees use: afterwards, building and evaluating
+perception._shape_kernel, tamp._segment_kernel, tamp._astar_kernel, tamp._product_kernel) compile every kernel the construction, the navigation function, the
+simulator's lidar, the obstacle map, the roadmap, the harmonic trees and the planner use: afterwards, building and evaluating
 forests of random and shared worlds, scanning with the lidar, updating an obstacle map,
-building a roadmap and planning a tree compile nothing new (checked in a fresh process)."""
+building a roadmap, planning a tree and a mission compile nothing new (checked in a fresh process)."""
 
 import json
 import subprocess
@@ -20,6 +20,7 @@ import perception._fit_kernel as fit_kernel
 import perception._shape_kernel as shape_kernel
 import tamp._segment_kernel as segment_kernel
 import tamp._astar_kernel as astar_kernel
+import tamp._product_kernel as product_kernel
 from navigation.kernels import compiled_signatures, warm_up
 from perception import ObstacleMap
 from service.sim import Simulator
@@ -29,7 +30,9 @@ warm_up()
 fit_kernel.warm_up()
 segment_kernel.warm_up()
 astar_kernel.warm_up()
-before = compiled_signatures((fit_kernel, shape_kernel, segment_kernel, astar_kernel))
+product_kernel.warm_up()
+kernels = (fit_kernel, shape_kernel, segment_kernel, astar_kernel, product_kernel)
+before = compiled_signatures(kernels)
 worlds = [random_forest_world(seed, n_obstacles=n, max_depth=4) for seed, n in ((0, 8), (1, 15), (2, 25))]
 worlds += [navigation.load_world(name) for name in ("office", "cluttered20")]
 for w in worlds:
@@ -52,7 +55,9 @@ from tamp.harmonic_tree import plan_tree
 rm = Roadmap.from_world(office)
 c = [r.center for r in office.regions.values()]
 plan_tree(rm, (*c[0], 0.0), (*c[1], 1.0))
-after = compiled_signatures((fit_kernel, shape_kernel, segment_kernel, astar_kernel))
+from tamp.planner import MissionPlanner
+MissionPlanner("office").plan()
+after = compiled_signatures(kernels)
 print(json.dumps({k: [before.get(k), v] for k, v in after.items() if before.get(k) != v}))
 """
 

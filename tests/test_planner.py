@@ -5,8 +5,11 @@ plans' words, re-planning == planning from scratch, progress kept across mission
 from __future__ import annotations
 
 import doctest
+import heapq
 import math
 import random
+
+import numpy as np
 
 import pytest
 
@@ -18,6 +21,7 @@ from tamp.errors import (InvalidRequestError, LtlSyntaxError, NoPlanError, TampE
 from tamp.ltl import Bdd, Buchi, Edge, parse, to_buchi
 from tamp.ltl.semantics import evaluate
 from tamp.navmap import START, Node
+from tamp._product_kernel import settle
 from tamp.planner import MissionMode, Plan
 
 FORMULAS = ["F a", "G F a & G F b", "F(a & F(b & F c))", "G(a -> F b) & G F a & G !d",
@@ -136,6 +140,50 @@ def test_plan_is_optimal_against_networkx(seed):
     sources = [(p.node, q) for q in sorted(p._states)]
     assert plan.cost == pytest.approx(reference_cost(p, sources))
     check_lasso(p, plan, formula)
+
+
+def _heapq_settle(prod, costs, sources):
+    """The nested Dijkstra's outer search in pure Python (``heapq`` on ``(cost, state)``), run to
+    the end: costs, predecessors and the accepting states in the order they are settled."""
+    Q, N = prod.Q, prod.N
+    dist, pred, heap, order = [math.inf] * (N * Q), [-1] * (N * Q), [], []
+    for s in sources:
+        dist[s] = 0.0
+        heap.append((0.0, s))
+    heapq.heapify(heap)
+    while heap:
+        d, s = heapq.heappop(heap)
+        if d > dist[s]:
+            continue
+        n, q = divmod(s, Q)
+        if q in prod.buchi.accepting:
+            order.append(s)
+        for t, n2 in prod.row(q):
+            nd = d + costs[n * N + n2]
+            if nd < dist[t]:
+                dist[t], pred[t] = nd, s
+                heapq.heappush(heap, (nd, t))
+    return dist, pred, order
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_compiled_product_search_settles_states_as_heapq_does(seed):
+    """``tamp._product_kernel.settle`` (compiled) against ``heapq`` with edge costs 0 to 3 (and
+    some removed edges), so that many paths tie: the same costs, predecessors and order of accepting
+    states, which is what keeps the planner's lassos and cycle statistics unchanged."""
+    rng = random.Random(seed)
+    regions = random_regions(rng, 4)
+    p = MissionPlanner(regions, FORMULAS[seed % len(FORMULAS)], n_orient=2,
+                       start=(rng.uniform(0, 5), rng.uniform(0, 5), 0.0))
+    prod = p.product
+    costs = [float(rng.randint(0, 3)) if rng.random() < 0.9 else math.inf for _ in range(prod.N * prod.N)]
+    sources = [rng.randrange(prod.N * prod.Q) for _ in range(3)] + [prod.encode(p.node, q) for q in sorted(p._states)]
+    ptr, row_t, row_n, accepting = prod.row_arrays()
+    dist, pred, order = settle(ptr, row_t, row_n, np.asarray(costs), prod.Q, prod.N,
+                               np.asarray(sources, dtype=np.int64), accepting)
+    ref_dist, ref_pred, ref_order = _heapq_settle(prod, costs, sources)
+    assert dist.tolist() == ref_dist and pred.tolist() == ref_pred and order.tolist() == ref_order
+    assert len(ref_order) > 1 and len(set(ref_dist)) < len(ref_dist) / 2  # ties were there
 
 
 @pytest.mark.parametrize("formula", FORMULAS)
