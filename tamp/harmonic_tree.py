@@ -371,16 +371,38 @@ def _visible_from(rm: Roadmap, t: _Terminal):
     return v, length[v], np.arctan2(vec[v, 1], vec[v, 0])
 
 
+_WIRED_KEPT = 32  # terminals a roadmap keeps (:func:`_wired`)
+
+
+def _wired(rm: Roadmap, q: np.ndarray, start, goal, reason: TreeFailure):
+    """:func:`_terminal` at ``q`` and the roadmap vertices it sees (:func:`_visible_from`),
+    memoised per roadmap and position: both depend on nothing else, and the trees of one
+    re-plan share their start (the robot) and often their goals. Failures are not kept (their
+    message names the tree's start and goal); at most ``_WIRED_KEPT`` positions per roadmap,
+    the oldest dropped first, so a roadmap that outlives many re-plans does not grow."""
+    key = ("wired", q.tobytes())
+    hit = rm._memo.get(key)
+    if hit is None:
+        t = _terminal(rm, q, start, goal, reason)
+        vis = _visible_from(rm, t)
+        for a in (t.q, t.amounts, t.P, *vis):
+            a.flags.writeable = False
+        hit = (t, vis)
+        wired = [k for k in rm._memo if k[0] == "wired"]
+        if len(wired) >= _WIRED_KEPT:
+            del rm._memo[wired[0]]
+        rm._memo[key] = hit
+    return hit
+
+
 def _problem(rm: Roadmap, start, goal, n_headings: int) -> _Problem:
     if not isinstance(rm, Roadmap):
         raise TampError(f"expected a tamp.roadmap.Roadmap, got {type(rm).__name__}")
     s = _pose(start, "start")
     g = _pose(goal, "goal")
     theta = headings(n_headings)
-    ts = _terminal(rm, s[:2], s, g, TreeFailure.START_BLOCKED)
-    tg = _terminal(rm, g[:2], s, g, TreeFailure.GOAL_BLOCKED)
-    fs = _visible_from(rm, ts)
-    vg, lg, ag = _visible_from(rm, tg)
+    ts, fs = _wired(rm, s[:2], s, g, TreeFailure.START_BLOCKED)
+    tg, (vg, lg, ag) = _wired(rm, g[:2], s, g, TreeFailure.GOAL_BLOCKED)
     # edges run vertex -> goal: reverse the direction
     tog = (vg, lg, np.arctan2(-np.sin(ag), -np.cos(ag)))
     direct = False

@@ -14,6 +14,7 @@ import pytest
 
 from navigation import Squircle
 from navigation.errors import TampError
+import tamp.harmonic_tree as ht
 from tamp.harmonic_tree import (NoTreePathError, RotationWeights, TreeFailure, edge_cost, plan_tree,
                                 revise_trees, rotation_terms, tree_graph)
 from tamp.roadmap import Roadmap, RoadmapConfig, descent_candidates, segments_clear
@@ -184,6 +185,27 @@ def test_astar_stops_at_the_goal_with_dijkstras_cost():
         assert 0 < tree.expanded <= reachable
         fractions.append(tree.expanded / reachable)
     assert min(fractions) < 0.5
+
+
+def test_trees_share_their_terminals_per_roadmap_and_equal_fresh_ones():
+    """A roadmap keeps each position's terminal and visible vertices (``_wired``): trees with a
+    common start reuse them, and every tree equals the tree on a fresh copy of the roadmap; the
+    roadmap keeps at most ``_WIRED_KEPT`` positions."""
+    world = shared_world("office")
+    rm = Roadmap.from_world(world)
+    poses = _poses(world, np.random.default_rng(11))
+    names = sorted(poses)
+    for b in names[1:]:
+        tree = plan_tree(rm, poses[names[0]], poses[b])
+        fresh = plan_tree(Roadmap.from_world(world), poses[names[0]], poses[b])
+        assert tree.waypoints == fresh.waypoints and tree.cost == fresh.cost
+    start = ("wired", np.asarray(poses[names[0]][:2], dtype=float).tobytes())
+    assert start in rm._memo
+    rng = np.random.default_rng(12)
+    for _ in range(2 * ht._WIRED_KEPT):
+        q = np.asarray(poses[names[0]][:2]) + rng.uniform(-1e-3, 1e-3, 2)
+        plan_tree(rm, (*q, 0.0), poses[names[1]])
+    assert sum(1 for k in rm._memo if k[0] == "wired") == ht._WIRED_KEPT
 
 
 def test_vicinity_limits_edge_length():
