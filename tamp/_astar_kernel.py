@@ -13,8 +13,8 @@ start, most of them farther from the goal than the path's cost.
 * Costs are accumulated as scipy does (``g(v) = g(u) + w(u, v)``, a predecessor replaced only
   by a strictly cheaper one), so the path's cost is the same number; where two paths cost
   exactly the same, either may be returned.
-* The open set is a binary heap of ``(g + h, node)`` with stale entries skipped (lazy
-  deletion); it holds at most one entry per relaxed edge.
+* The open set is a binary heap of ``(g + h, node)`` (:mod:`tamp._heap`: ties broken by node)
+  with stale entries skipped (lazy deletion); it holds at most one entry per relaxed edge.
 """
 
 from __future__ import annotations
@@ -22,48 +22,12 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from ._heap import pop as _pop
+from ._heap import push as _push
+
 __all__ = ["astar", "warm_up"]
 
 _JIT = dict(cache=True, nogil=True)
-
-
-@numba.njit(inline="always", **_JIT)
-def _push(keys, vals, n, key, val):
-    i = n
-    while i > 0:
-        p = (i - 1) >> 1
-        if keys[p] <= key:
-            break
-        keys[i] = keys[p]
-        vals[i] = vals[p]
-        i = p
-    keys[i] = key
-    vals[i] = val
-    return n + 1
-
-
-@numba.njit(inline="always", **_JIT)
-def _pop(keys, vals, n):
-    """Remove the root of the heap of size ``n``; returns the new size (the root was read
-    before)."""
-    n -= 1
-    key, val = keys[n], vals[n]
-    i = 0
-    while True:
-        c = 2 * i + 1
-        if c >= n:
-            break
-        if c + 1 < n and keys[c + 1] < keys[c]:
-            c += 1
-        if keys[c] >= key:
-            break
-        keys[i] = keys[c]
-        vals[i] = vals[c]
-        i = c
-    if n > 0:
-        keys[i] = key
-        vals[i] = val
-    return n
 
 
 @numba.njit(**_JIT)

@@ -7,8 +7,8 @@ them. The planner then walks that list with its cycle searches and stops where t
 search stopped (``P(a) >= best``), so the result is the same: a state's cost and predecessor do
 not change after it is settled (costs are ``>= 0``; a predecessor is replaced only by a strictly
 cheaper one), and ties are broken as ``heapq`` breaks them on ``(cost, state)`` tuples: the
-binary heap here orders its entries by cost, then state, so the states are settled in the same
-order.
+binary heap (:mod:`tamp._heap`) orders its entries by cost, then state, so the states are
+settled in the same order.
 
 The product's edges are the CSR arrays of :meth:`tamp.product.Product.row_arrays`: row ``q``
 holds the pairs ``(t, n')`` of :meth:`~tamp.product.Product.row`; the edge from product state
@@ -20,52 +20,12 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from ._heap import pop as _pop
+from ._heap import push as _push
+
 __all__ = ["settle", "warm_up"]
 
 _JIT = dict(cache=True, nogil=True)
-
-
-@numba.njit(inline="always", **_JIT)
-def _less(ka, va, kb, vb):
-    return ka < kb or (ka == kb and va < vb)
-
-
-@numba.njit(inline="always", **_JIT)
-def _push(keys, vals, n, key, val):
-    i = n
-    while i > 0:
-        p = (i - 1) >> 1
-        if not _less(key, val, keys[p], vals[p]):
-            break
-        keys[i] = keys[p]
-        vals[i] = vals[p]
-        i = p
-    keys[i] = key
-    vals[i] = val
-    return n + 1
-
-
-@numba.njit(inline="always", **_JIT)
-def _pop(keys, vals, n):
-    """Remove the root of the heap of size ``n`` (read before); returns the new size."""
-    n -= 1
-    key, val = keys[n], vals[n]
-    i = 0
-    while True:
-        c = 2 * i + 1
-        if c >= n:
-            break
-        if c + 1 < n and _less(keys[c + 1], vals[c + 1], keys[c], vals[c]):
-            c += 1
-        if not _less(keys[c], vals[c], key, val):
-            break
-        keys[i] = keys[c]
-        vals[i] = vals[c]
-        i = c
-    if n > 0:
-        keys[i] = key
-        vals[i] = val
-    return n
 
 
 @numba.njit(**_JIT)
