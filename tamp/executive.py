@@ -440,6 +440,12 @@ class ExecutiveConfig:
         the last scan that no estimate covers, and closer than it already is, has its speed
         reduced until it does not (turning is kept); the clusters of the estimates there are
         refitted at the next scan. ``None`` disables the guard.
+    guard_noise : float
+        With a noisy lidar the guard keeps ``guard_margin`` plus this many standard deviations
+        of the lidar's range noise (``perception.PerceptionConfig.noise_std``): a single scan's
+        returns scatter about the surface, and a hold that one scan asks for, the next scan's
+        draw may release (``--sweep 100:200 --noise 0.05``: 10 contact steps at 1 x 0, none at
+        1 x; docs/executive.md, fortieth session). No effect without noise.
     guard_horizon : float
         Seconds of motion the guard checks (a control period at 10 Hz).
     crawl_guard : navigation.CrawlConfig or None
@@ -508,6 +514,7 @@ class ExecutiveConfig:
     seen_share: float = 0.9
     probe_ratio: float = 0.0
     guard_margin: float | None = 0.005
+    guard_noise: float = 1.0
     guard_horizon: float = 0.1
     crawl_guard: CrawlConfig | None = CrawlConfig()
     route_rescue: bool = True
@@ -527,7 +534,7 @@ class ExecutiveConfig:
 
     def __post_init__(self):
         check_numbers(self, ("buffer", "fallback_buffer", "check_margin", "blocked_timeout", "detour_ratio",
-                             "seen_detour_ratio", "seen_share", "probe_ratio", "align_angle", "align_time", "guard_horizon",
+                             "seen_detour_ratio", "seen_share", "probe_ratio", "align_angle", "align_time", "guard_horizon", "guard_noise",
                              "max_segment", "pass_beyond", "stuck_time", "stuck_progress", "centre_reach"),
                       positive=False, error=TampError)
         for name in ("guard_margin", "boundary_buffer"):
@@ -786,6 +793,8 @@ class Executive:
         self._known_rows = pack([inflate(o, 0.02) for o in known_obs]) if known_obs else None
         all_known = known and len(known_obs) == len(world.obstacles)
         self.omap: ObstacleMap | None = None if all_known else ObstacleMap.from_world(world)
+        # the lidar's range noise (standard deviation, m): the motion guard's extra margin
+        self._range_noise = self.omap.config.noise_std if self.omap is not None else 0.0
         self.planner = MissionPlanner(world, task, n_orient=cfg.n_orient)
         self.task = self.planner.mission
         self.weights = RotationWeights()
@@ -1895,7 +1904,8 @@ class Executive:
     def _guard(self, p, v: float, w: float) -> float:
         """The speed ``v`` (turn rate ``w``) limited so that the robot disc, over the next
         ``guard_horizon`` seconds of the arc (checked at four points along it), comes no closer
-        than ``guard_margin`` to a lidar return of the last scan that no estimate covers (its
+        than ``guard_margin`` (plus ``guard_noise`` times the lidar's range noise) to a lidar
+        return of the last scan that no estimate covers (its
         radial error outside every estimate above 2 mm), unless it is moving away from them
         (the end of the arc no closer than now). The navigation function keeps the robot off
         the inflated estimates, which fit the returns only to ``refit_tol``; a face seen
@@ -1925,7 +1935,7 @@ class Executive:
         if not len(pts):
             return v, None, None
         T = cfg.guard_horizon
-        need = self.radius + cfg.guard_margin
+        need = self.radius + cfg.guard_margin + cfg.guard_noise * self._range_noise
         reach = need + abs(v) * T
         x, y, th = p
         d = np.hypot(pts[:, 0] - x, pts[:, 1] - y)

@@ -1112,6 +1112,32 @@ def test_motion_guard_keeps_the_disc_off_the_returns(heading):
     assert ex._guard(far, 0.5, 0.0) == 0.5  # nothing within reach
 
 
+def test_motion_guard_keeps_noise_more_with_a_noisy_lidar():
+    """With lidar range noise ``sigma`` the guard keeps ``guard_margin + guard_noise sigma`` from
+    the returns (one scan's draw must not release a hold the last one asked for); the same
+    world with a noise-free lidar keeps ``guard_margin``, and ``guard_noise = 0`` turns the extra
+    off. The robot drives at the wall of returns at x = 1 from 4 cm."""
+    base = _open_corridor()
+    noisy = dataclasses.replace(base, lidar=dataclasses.replace(base.lidar, noise_std=0.02))
+    ys = np.linspace(-1.0, 1.0, 401)
+    wall = np.stack((np.full_like(ys, 1.0), ys), 1)
+
+    def clearance_after(world, **cfg):
+        ex = Executive(world, "F b", config=ExecutiveConfig(**cfg))
+        ex.omap = _Returns(wall)
+        r = ex.radius
+        v = ex._guard((1.0 - r - 0.04, 0.0, 0.0), 0.5, 0.0)
+        return 1.0 - (1.0 - r - 0.04 + v * ex.config.guard_horizon) - r
+
+    m = ExecutiveConfig().guard_margin
+    plain, wide, off = clearance_after(base), clearance_after(noisy), clearance_after(noisy, guard_noise=0.0)
+    assert m - 2e-3 <= plain < m + 0.01
+    assert m + 0.02 - 2e-3 <= wide < m + 0.02 + 0.01
+    assert off == pytest.approx(plain)
+    with pytest.raises(TampError):
+        ExecutiveConfig(guard_noise=-1.0)
+
+
 def test_motion_guard_hold_ends_in_a_slide_around_the_return():
     """A post of returns that no estimate covers stands across the straight way to ``a``: the
     field leads the robot into it and the motion guard holds it; after ``GUARD_HOLD_TICKS`` held
