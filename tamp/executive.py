@@ -444,8 +444,8 @@ class ExecutiveConfig:
         With a noisy lidar the guard keeps ``guard_margin`` plus this many standard deviations
         of the lidar's range noise (``perception.PerceptionConfig.noise_std``): a single scan's
         returns scatter about the surface, and a hold that one scan asks for, the next scan's
-        draw may release (``--sweep 100:200 --noise 0.05``: 10 contact steps at 1 x 0, none at
-        1 x; docs/executive.md, fortieth session). No effect without noise.
+        draw may release (``--sweep 100:200 --noise 0.05``: 10 contact steps with 0, none with
+        1; docs/executive.md, fortieth session). No effect without noise.
     guard_horizon : float
         Seconds of motion the guard checks (a control period at 10 Hz).
     crawl_guard : navigation.CrawlConfig or None

@@ -221,7 +221,9 @@ def _nested_dijkstra(prod: Product, costs, sources: Iterable[int], alpha: float,
     accepting state ``a`` met (in order of prefix cost ``P(a)``) gets its cheapest cycle
     ``C(a)`` (second Dijkstra, cached in ``cache``); returns the minimiser of
     ``P(a) + alpha * C(a)``. The outer search stops once ``P >= best`` and each cycle search
-    once ``P(a) + alpha * C >= best`` (costs are >= 0), which never changes the optimum."""
+    once ``P(a) + alpha * C >= best`` (costs are >= 0), which never changes the optimum. The
+    outer search is compiled (:func:`tamp._product_kernel.settle`, run to the end); its
+    accepting states are walked here in the order it settled them, up to that stop."""
     Q, N = prod.Q, prod.N
     ptr, row_t, row_n, accepting = prod.row_arrays()
     c = np.asarray(costs, dtype=float)
