@@ -296,9 +296,10 @@ def run(names: Sequence[str], max_time: float = 300.0, config: ExecutiveConfig |
     runs = isolated_map(_nominal_run, jobs, 1, _log_row)
     rows = []
     for k, name in enumerate(names):
-        row = _merge_repeats(runs[k::len(names)])
+        mine = runs[k::len(names)]
+        row = _merge_repeats(mine)
         if row["route_differs"]:
-            dists = ", ".join(f"{r['distance']:.2f} m" for r in runs[k::len(names)])
+            dists = ", ".join(f"{r['distance']:.2f} m" for r in mine)
             log(f"[bench] warning: the {repeat} runs of {name} took different routes ({dists}); "
                 "its row is the first run's")
         rows.append(row)
