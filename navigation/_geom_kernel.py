@@ -1120,8 +1120,8 @@ def _snug_eval(a, b, r, s2, P, Bp, N, h, side):
 
 
 @numba.njit(**_JIT)
-def _snug_kernel(a, b, s, r, arc, m, grid, refine, h, side):
-    Bn, Nn = _normal_samples(a, b, s, m)
+def _snug_kernel(a, b, s, r, arc, Bn, Nn, grid, refine, h, side):
+    m = Bn.shape[0]
     n_arc = arc.shape[0]
     # containment points, folded into the first quadrant (the shapes are symmetric about both
     # axes): the offset points of the arc-length samples and of the normal-angle samples
@@ -1172,8 +1172,15 @@ def _snug_kernel(a, b, s, r, arc, m, grid, refine, h, side):
     return s2, k, best_e, full[n_arc:].copy()
 
 
+def normal_samples(a: float, b: float, s: float, m: int = 129) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_normal_samples` (``(m, 2)`` points and unit normals, first quadrant, own frame):
+    they depend on the shape only, not on the offset, so a caller growing one squircle by
+    several radii computes them once (:func:`navigation.geometry._snug_base`)."""
+    return _normal_samples(float(a), float(b), float(s), int(m))
+
+
 def snug_shape(a: float, b: float, s: float, r: float, offset: np.ndarray, m: int = 129, grid: int = 4,
-               refine: int = 8, h: float = 1e-9, side: float = 1.0):
+               refine: int = 8, h: float = 1e-9, side: float = 1.0, normals=None):
     """``(s', k, J, corner)`` for :meth:`navigation.geometry.Squircle.grow_snug`, in the
     squircle's own frame (half extents ``a, b``, parameter ``s``, offset ``r``): the least
     ``k`` whose squircle (half extents ``a + k r + h``, ``b + k r + h``, parameter ``s'``)
@@ -1184,6 +1191,8 @@ def snug_shape(a: float, b: float, s: float, r: float, offset: np.ndarray, m: in
     (along every fourth of those normals) and ``side`` times the sides' own move ``(k - 1) r``.
     Search over ``log(1 - s')``: ``grid + 1`` even steps, then ``refine`` golden-section steps
     between the best one's neighbours, on every fourth arc-length sample; the final ``k`` on
-    all of them."""
-    return _snug_kernel(float(a), float(b), float(s), float(r), _arr(offset).reshape(-1, 2), int(m), int(grid),
-                        int(refine), float(h), float(side))
+    all of them. ``normals``: :func:`normal_samples` ``(a, b, s, m)`` if already computed (the
+    same arrays, so the same result)."""
+    Bn, Nn = normal_samples(a, b, s, m) if normals is None else normals
+    return _snug_kernel(float(a), float(b), float(s), float(r), _arr(offset).reshape(-1, 2), _arr(Bn), _arr(Nn),
+                        int(grid), int(refine), float(h), float(side))

@@ -323,10 +323,7 @@ class Squircle:
     def offset_points(self, r: float, n: int = 256) -> np.ndarray:
         """``n`` boundary points moved ``r`` along their outward unit normals (the offset curve
         at distance ``r``; for ``r > 0`` exactly ``r`` from the squircle), shape ``(n, 2)``."""
-        b = self.boundary_points(n)
-        # compiled: b + r g / |g| with g = self.gradient(b) (beta_jet at order 1), the same bits
-        p = _packed_row(self)
-        return _geom_kernel.offset_points(p, 4.0 * p[..., S] ** 2, b, float(r))
+        return _offset(self, self.boundary_points(n), r)
 
     def _grow_uncached(self, r: float, samples: int) -> "Squircle":
         if r < 0 and -2 * r >= min(self.width, self.height):
@@ -385,15 +382,37 @@ _SNUG_SIDE = 3.0  # weight of the sides' own outward move against the largest re
 _SNUG_MARGIN = 1e-5  # m on every side: the offset curve between its samples (measured: < 4 um)
 
 
+def _offset(sq: Squircle, b: np.ndarray, r: float) -> np.ndarray:
+    """The boundary points ``b`` of ``sq`` moved ``r`` along their outward unit normals
+    (compiled: ``b + r g / |g|`` with ``g = sq.gradient(b)``, beta_jet at order 1, the same bits)."""
+    p = _packed_row(sq)
+    return _geom_kernel.offset_points(p, 4.0 * p[..., S] ** 2, b, float(r))
+
+
+@functools.lru_cache(maxsize=1024)
+def _snug_base(sq: Squircle, samples: int):
+    """What :func:`_grow_snug` needs of ``sq`` for any radius: its ``samples`` arc-length-even
+    boundary points (:meth:`Squircle.boundary_points`) and the compiled search's normal-angle
+    samples (:func:`navigation._geom_kernel.normal_samples`, about half of the search's time).
+    The roadmaps grow every new estimate by two radii (the main and the fallback buffer), so
+    the second growth reuses them; the arrays are read-only."""
+    b = sq.boundary_points(samples)
+    normals = _geom_kernel.normal_samples(sq.width / 2.0, sq.height / 2.0, sq.s)
+    for a in (b, *normals):
+        a.flags.writeable = False
+    return b, normals
+
+
 @functools.lru_cache(maxsize=8192)
 def _grow_snug(sq: Squircle, r: float, samples: int) -> Squircle:
     """Memoised :meth:`Squircle.grow_snug` (``r > 0``)."""
-    p = sq.offset_points(r, samples)
+    b, normals = _snug_base(sq, samples)
+    p = _offset(sq, b, r)  # sq.offset_points(r, samples), from the shared boundary points
     ct, st = math.cos(sq.theta), math.sin(sq.theta)
     rot = np.array([[ct, -st], [st, ct]])  # row vectors times rot: world -> own frame
     c = np.asarray(sq.center)
     s2, k, _, corner = _geom_kernel.snug_shape(sq.width / 2.0, sq.height / 2.0, sq.s, r, (p - c) @ rot,
-                                               side=_SNUG_SIDE)
+                                               side=_SNUG_SIDE, normals=normals)
     if not math.isfinite(k):  # pragma: no cover - s' = s always has a finite k
         return sq.grow(r, samples)
     corners = np.concatenate([corner * f for f in ((1.0, 1.0), (-1.0, 1.0), (-1.0, -1.0), (1.0, -1.0))]) @ rot.T + c
@@ -679,6 +698,7 @@ def clear_geometry_cache() -> None:
     _unit_area.cache_clear()
     _grow.cache_clear()
     _grow_snug.cache_clear()
+    _snug_base.cache_clear()
     _sample_table.cache_clear()
     _perimeter.cache_clear()
     _packed_row.cache_clear()

@@ -236,6 +236,28 @@ def test_snug_growth_of_nothing_or_less_is_grow():
             sq.grow_snug(bad)
 
 
+
+def test_snug_growth_by_a_second_radius_reuses_the_shape_samples_and_is_the_same():
+    """The roadmaps grow one estimate by two radii; the second growth reuses the boundary and
+    normal-angle samples (memoised per squircle) and equals a growth computed alone."""
+    from navigation import _geom_kernel
+    from navigation.geometry import _grow_snug, _snug_base, clear_geometry_cache
+
+    rng = np.random.default_rng(5)
+    for _ in range(12):
+        sq = Squircle(tuple(rng.uniform(-2, 2, 2)), rng.uniform(0.05, 1.5), rng.uniform(0.05, 1.5),
+                      rng.uniform(-3, 3), rng.uniform(0.0, 0.999))
+        clear_geometry_cache()
+        alone = sq.grow_snug(0.13)
+        clear_geometry_cache()
+        first = sq.grow_snug(0.25)
+        second = sq.grow_snug(0.13)
+        assert _snug_base.cache_info().hits >= 1
+        assert second == alone and first == _grow_snug.__wrapped__(sq, 0.25, 720)
+        assert np.array_equal(_snug_base(sq, 720)[0], sq.boundary_points(720))
+        bn, nn = _geom_kernel.normal_samples(sq.width / 2, sq.height / 2, sq.s)
+        assert np.array_equal(bn, _snug_base(sq, 720)[1][0]) and np.array_equal(nn, _snug_base(sq, 720)[1][1])
+
 @pytest.mark.parametrize("s", [0.0, 0.5, 0.95])
 def test_snug_kernel_gauge_derivatives_match_finite_differences(s):
     from navigation._geom_kernel import _gauge2, _gauge2_dx
