@@ -967,12 +967,10 @@ class ObstacleMap:
         # inside one estimate, not refitted in its last 100 scans)
         cl.pending = deep
         cl.result = tuple(proposed[i].squircle for i in ids)
-        # regions: keep their discs (grown by the radius) free
-        if self._trim_regions(new_ids, proposed, changed, removed):
-            # decompose rather than uncover: returns a trim left outside the cluster's estimates
-            # (a piece that bridged free space around the region) get estimates of their own
-            add = self._recover(lab, proposed, changed, (q, v, free))
-            self._trim_regions(add, proposed, changed, removed)
+        # regions: keep their discs (grown by the radius) free; decompose rather than uncover
+        # (returns a trim left outside the cluster's estimates, a piece that bridged free space
+        # around the region, get estimates of their own)
+        self._clear_regions(new_ids, proposed, changed, removed, None, lab, (q, v, free))
 
     def _recover(self, lab: int, proposed: dict, changed: set, data=None) -> list[int]:
         """Returns of cluster ``lab`` that its estimates (after a trim) leave more than
@@ -1014,22 +1012,25 @@ class ObstacleMap:
                         any_trim = True
         return any_trim
 
-    def _clear_regions(self, ids, proposed, changed, removed, notes) -> None:
-        """Trim the estimates ``ids`` clear of the region discs as a refit does (decompose
-        rather than uncover: the returns a trim left outside get estimates of their own, trimmed
-        too). For the covers the forest repairs make: two estimates merged to break a cycle can
-        span a region between them (``random520``: two bars over ``r1`` merged into one
-        squircle over it, and the robot stopped blocked with ``r1`` walled off)."""
+    def _clear_regions(self, ids, proposed, changed, removed, notes, lab=None, data=None) -> None:
+        """Trim the estimates ``ids`` clear of the region discs, decomposing rather than
+        uncovering: the returns a trim left outside their cluster's estimates get estimates of
+        their own (:meth:`_recover`), trimmed too. A refit calls it for its cluster ``lab``
+        (whose ``(q, v, free)`` are ``data``; no note); the forest repairs for the covers they
+        make (two estimates merged to break a cycle can span a region between them:
+        ``random520``, two bars over ``r1`` merged into one squircle over it, and the robot
+        stopped blocked with ``r1`` walled off), each estimate's own cluster recovering, with
+        a note in ``notes``."""
         trimmed = []
         for i in ids:
-            lab = self._resolve(proposed[i].cluster) if i in proposed else None
+            own = lab if lab is not None else (self._resolve(proposed[i].cluster) if i in proposed else None)
             if self._trim_regions([i], proposed, changed, removed):
-                trimmed.append(lab)
+                trimmed.append(own)
         add = []
-        for lab in dict.fromkeys(lab for lab in trimmed if lab is not None):
-            add += self._recover(lab, proposed, changed)
+        for own in dict.fromkeys(own for own in trimmed if own is not None):
+            add += self._recover(own, proposed, changed, data if own == lab else None)
         self._trim_regions(add, proposed, changed, removed)
-        if trimmed:
+        if trimmed and notes is not None:
             notes.append(f"trimmed {len(trimmed)} repaired estimate(s) clear of the region discs"
                          + (f", fitted {len(add)} estimate(s) to the returns left outside" if add else ""))
 

@@ -402,6 +402,35 @@ def test_a_cycle_merge_over_a_region_is_trimmed_clear_of_its_disc(monkeypatch):
         assert e.inflated.beta(c) > 0 and float(e.squircle.distance(c)) >= 0.15 + r, e
 
 
+@pytest.mark.parametrize("y", [3.05, 3.2])
+def test_a_refit_keeps_a_region_disc_clear_and_fits_the_returns_a_trim_left_out(y):
+    """A wall face seen from below with a region disc behind it: the refit's estimate (its
+    unseen side completed) is trimmed clear of the disc grown by the radius. At ``y = 3.2`` a
+    thinner wall covers every return; at ``3.05`` the disc reaches the face itself, so the
+    middle of the wall cannot be kept and the returns the trim left out are fitted as
+    estimates of their own (trimmed too), away from the disc. A refit adds no note (the
+    repairs' covers do, test above)."""
+    from perception.fit import radial_error
+
+    omap = ObstacleMap.from_world(shared_world("office"))
+    c = np.array([6.0, y])
+    omap.regions = [(c, 0.15)]
+    xs = np.linspace(5.6, 6.4, 41)
+    pts = np.stack([xs, np.full_like(xs, 2.8)], axis=1)
+    upd = omap.update_points({"stamp": 0.0, "points": pts.tolist()}, (6.0, 2.3, math.pi / 2))
+    assert upd.notes == ()
+    est = list(omap.estimates.values())
+    assert len(est) == (2 if y < 3.1 else 1)
+    for e in est:
+        assert e.inflated.beta(c) > 0 and float(e.squircle.distance(c)) >= 0.15 + omap.radius
+    err = np.min([radial_error(e.squircle, pts) for e in est], axis=0)
+    if y > 3.1:
+        assert err.max() <= omap.config.refit_tol
+    else:  # the two ends are covered, the returns in front of the disc are not
+        far = np.abs(xs - 6.0) > 0.3
+        assert err[far].max() <= omap.config.refit_tol and err[~far].max() > omap.config.refit_tol
+
+
 def _cert_map():
     """An office map and a helper making estimates from inflated squircles."""
     from perception.map import Estimate
