@@ -389,13 +389,14 @@ def _offset(sq: Squircle, b: np.ndarray, r: float) -> np.ndarray:
     return _geom_kernel.offset_points(p, 4.0 * p[..., S] ** 2, b, float(r))
 
 
-@functools.lru_cache(maxsize=1024)
+@functools.lru_cache(maxsize=128)
 def _snug_base(sq: Squircle, samples: int):
     """What :func:`_grow_snug` needs of ``sq`` for any radius: its ``samples`` arc-length-even
     boundary points (:meth:`Squircle.boundary_points`) and the compiled search's normal-angle
     samples (:func:`navigation._geom_kernel.normal_samples`, about half of the search's time).
     The roadmaps grow every new estimate by two radii (the main and the fallback buffer), so
-    the second growth reuses them; the arrays are read-only."""
+    the second growth reuses them, soon after the first: 128 shapes are kept (about 16 kB
+    each); the arrays are read-only."""
     b = sq.boundary_points(samples)
     normals = _geom_kernel.normal_samples(sq.width / 2.0, sq.height / 2.0, sq.s)
     for a in (b, *normals):
