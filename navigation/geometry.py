@@ -393,7 +393,7 @@ def _offset(sq: Squircle, b: np.ndarray, r: float) -> np.ndarray:
 def _snug_base(sq: Squircle, samples: int):
     """What :func:`_grow_snug` needs of ``sq`` for any radius: its ``samples`` arc-length-even
     boundary points (:meth:`Squircle.boundary_points`) and the compiled search's normal-angle
-    samples (:func:`navigation._geom_kernel.normal_samples`, about half of the search's time).
+    samples (:func:`navigation._geom_kernel.normal_samples`, about 40 % of the compiled part).
     The roadmaps grow every new estimate by two radii (the main and the fallback buffer), so
     the second growth reuses them, soon after the first: 128 shapes are kept (about 16 kB
     each); the arrays are read-only."""
