@@ -236,7 +236,6 @@ def test_snug_growth_of_nothing_or_less_is_grow():
             sq.grow_snug(bad)
 
 
-
 def test_snug_growth_by_a_second_radius_reuses_the_shape_samples_and_is_the_same():
     """The roadmaps grow one estimate by two radii; the second growth reuses the boundary and
     normal-angle samples (memoised per squircle) and equals a growth computed alone."""
@@ -257,6 +256,7 @@ def test_snug_growth_by_a_second_radius_reuses_the_shape_samples_and_is_the_same
         assert np.array_equal(_snug_base(sq, 720)[0], sq.boundary_points(720))
         bn, nn = _geom_kernel.normal_samples(sq.width / 2, sq.height / 2, sq.s)
         assert np.array_equal(bn, _snug_base(sq, 720)[1][0]) and np.array_equal(nn, _snug_base(sq, 720)[1][1])
+
 
 @pytest.mark.parametrize("s", [0.0, 0.5, 0.95])
 def test_snug_kernel_gauge_derivatives_match_finite_differences(s):
