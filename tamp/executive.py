@@ -1690,13 +1690,21 @@ class Executive:
             c = np.asarray(self.world.regions[name].center, dtype=float)
             current = np.asarray(self.leg[-1][:2], dtype=float) if going else None
             avoid = [q for q in looked if current is None or math.dist(q, current) > 1e-9] + [tuple(p[:2])]
-            cand = self._look_candidates(p, c, np.array(avoid, dtype=float))
+            cand, comp = self._look_candidates(p, c, np.array(avoid, dtype=float))
             if current is not None:  # on the way to a look point: keep it while it has a tree
-                cand = np.concatenate([current[None], cand])
-            for q in cand[:LOOK_CANDIDATES]:
+                cand, comp = np.concatenate([current[None], cand]), np.concatenate([[-1], comp])
+            tried, cut = 0, set()  # roadmap components no tree from the robot reaches
+            for q, k in zip(cand, comp):
+                if tried >= LOOK_CANDIDATES:
+                    break
+                if k in cut:
+                    continue
+                tried += 1
                 goal = (float(q[0]), float(q[1]), math.atan2(c[1] - q[1], c[0] - q[0]))
                 tree, _ = self._tree_road(p, goal)
                 if isinstance(tree, Exception):
+                    if k >= 0 and isinstance(tree, NoTreePathError) and tree.reason is TreeFailure.DISCONNECTED:
+                        cut.add(k)
                     continue
                 if current is None or math.dist(q, current) > 1e-9:
                     looked.append((goal[0], goal[1]))
@@ -1715,23 +1723,25 @@ class Executive:
         """Look points the robot set out for (module doc, "Going to look")."""
         return sum(len(v) for v in self._looked.values())
 
-    def _look_candidates(self, p, c, avoid) -> np.ndarray:
-        """Look points for a region centred at ``c``, nearest first: the vertices of the
-        fallback roadmap in the components the robot sees (a tree reaches them), at least
-        ``LOOK_SPACING`` from the points in ``avoid``; all its vertices when the robot sees
-        none (it stands in a buffer zone)."""
+    def _look_candidates(self, p, c, avoid) -> tuple[np.ndarray, np.ndarray]:
+        """Look points for a region centred at ``c`` and their roadmap components: the
+        vertices of the fallback roadmap at least ``LOOK_SPACING`` from the points in
+        ``avoid``, those in the components the robot sees first (a tree reaches them), then
+        the others (a robot beside a passage it cannot take may see only the far side's
+        vertices, or none from a buffer zone), each group nearest to ``c`` first."""
         rm = self._roads[-1].current()
         pts = rm.points
         if not len(pts):
-            return np.zeros((0, 2))
+            return np.zeros((0, 2)), np.zeros(0, dtype=int)
         n = len(pts)
         ncomp, lab = connected_components(
             csr_matrix((np.ones(len(rm.pairs)), (rm.pairs[:, 0], rm.pairs[:, 1])), shape=(n, n)), directed=False)
         seen = rm.visible(np.repeat(np.asarray(p[:2], dtype=float)[None], n, axis=0), pts)
-        keep = np.isin(lab, np.unique(lab[seen])) if seen.any() else np.ones(n, dtype=bool)
-        keep &= np.linalg.norm(pts[:, None, :] - avoid[None], axis=2).min(axis=1) >= LOOK_SPACING
-        cand = pts[keep]
-        return cand[np.argsort(np.linalg.norm(cand - c, axis=1), kind="stable")]
+        first = np.isin(lab, np.unique(lab[seen]))
+        keep = np.linalg.norm(pts[:, None, :] - avoid[None], axis=2).min(axis=1) >= LOOK_SPACING
+        order = np.lexsort((np.linalg.norm(pts - c, axis=1), ~first))
+        order = order[keep[order]]
+        return pts[order], lab[order]
 
     # ------------------------------------------------------------------ control
     def _free(self, pts: np.ndarray) -> np.ndarray:
