@@ -389,8 +389,8 @@ def chatter_sources(poses, waypoints, replanned, dt: float) -> dict:
 _CLASSES = {"OHPF": OHPFExecutive, "NF": NFExecutive, "RRT*": RRTStarExecutive}
 #: the executive configuration of the baselines: the defaults without the route rescue and
 #: without going to look before stopping blocked, which both drive along harmonic trees (HT's
-#: execution layer; docs/executive.md)
-BASELINE_CONFIG = ExecutiveConfig(route_rescue=False, look_tries=0)
+#: execution layer; docs/executive.md), and tracking fields, not pursuing a tree's path
+BASELINE_CONFIG = ExecutiveConfig(route_rescue=False, look_tries=0, pursuit=0.0)
 
 
 def run_method(method: str, world, task=None, *, seed: int = 0, max_time: float = 300.0) -> dict:

@@ -442,6 +442,16 @@ class Tracker:
         self._sent = (t, cmd.v, cmd.omega)
         return cmd
 
+    def pursue(self, t: float, pose, point, field: OrientedField, beyond: float = 0.0,
+               v_cap: float = math.inf) -> Command:
+        """The command towards ``point`` (eq. 24 on its bearing, :func:`~navigation.control.track_point`,
+        the safety limit of ``field``'s forest), rate-limited from the last command."""
+        t = float(t)
+        self._mode = Mode.PLAIN
+        cmd = track_point(pose, point, field, self.config, previous=self._previous(t), beyond=beyond, v_cap=v_cap)
+        self._sent = (t, cmd.v, cmd.omega)
+        return cmd
+
     def rescue(self, t: float, pose, current: OrientedField) -> bool:
         """Plan a route from ``pose`` to ``current``'s goal pose now, for a caller whose own
         watch says the field fails (the executive's progress watchdog); it is pursued by

@@ -91,6 +91,9 @@ def _common(p: argparse.ArgumentParser, *, default_world: str | None) -> None:
                    help="track with eq. 24 alone: never engage the stand-off that walks a crawling robot "
                         "along the wall, nor switch modes when it loops (docs/control.md 'Crawl guard', "
                         "'Pull-in', 'Loops')")
+    p.add_argument("--fields", action="store_true",
+                   help="track each waypoint's oriented field (paper 001 eq. 24-25) instead of pursuing the "
+                        "harmonic tree's path 0.3 m ahead (docs/executive.md 'Pursuit')")
     p.add_argument("-v", "--verbose", action="store_true", help="log every warning and state change")
 
 
@@ -132,13 +135,16 @@ def _executive_config(a):
     """The executive's configuration from the options: its default controller (rate-limited,
     docs/control.md "Rate-limited mode") with ``--accel-max`` / ``--alpha-max`` as given, or
     without the rate limit with ``--unlimited``; no crawl guard with ``--no-crawl-guard``;
-    ``None`` (the executive's defaults) when none of them is given."""
-    if a.accel_max is None and a.alpha_max is None and not a.unlimited and not a.no_crawl_guard:
+    each waypoint's field tracked (no pursuit) with ``--fields``; ``None`` (the executive's
+    defaults) when none of them is given."""
+    if a.accel_max is None and a.alpha_max is None and not a.unlimited and not a.no_crawl_guard and not a.fields:
         return None
     from navigation.control import UNLIMITED
     from tamp.executive import ExecutiveConfig
 
     over = {"crawl_guard": None} if a.no_crawl_guard else {}
+    if a.fields:
+        over["pursuit"] = 0.0
     given = dict(UNLIMITED) if a.unlimited else {}
     given.update({k: v for k, v in (("accel_max", a.accel_max), ("alpha_max", a.alpha_max)) if v is not None})
     if given:

@@ -545,10 +545,11 @@ def test_reachable_speed_is_the_speed_of_the_circle_through_the_waypoint():
 def test_the_executive_never_drives_faster_than_it_can_turn_onto_its_waypoint(cap):
     """``ExecutiveConfig.turn_cap``: on the way through the gap every command's speed is at
     most ``reachable_speed`` of the waypoint tracked (the motion guard and the safety limit
-    only lower it further); without it the robot drives faster somewhere. Both arrive."""
+    only lower it further); without it the robot drives faster somewhere. Both arrive. (The
+    cap is for the waypoints' fields, ``pursuit=0``: pursuing the leg, no waypoint is aimed at.)"""
     world = _seen_gap_world()
     unlimited = dataclasses.replace(ExecutiveConfig().controller, **UNLIMITED)  # the cap is off with the rate limit
-    ex = Executive(world, config=ExecutiveConfig(turn_cap=cap, controller=unlimited))
+    ex = Executive(world, config=ExecutiveConfig(turn_cap=cap, controller=unlimited, pursuit=0.0))
     sim = Simulator(world, seed=0)
     over = 0
     for _ in range(400):
@@ -569,9 +570,9 @@ def test_the_rate_limited_executive_brakes_towards_the_speed_it_can_turn_at(cap)
     ``reachable_speed`` of the waypoint tracked to the tracker as ``v_cap``: every command is
     then at most that speed or as slow as braking at ``accel_max`` from the previous command
     allows, and within the rate bound of the previous command; without it the robot drives
-    faster than it can turn somewhere. Both arrive without collision."""
+    faster than it can turn somewhere. Both arrive without collision. (Fields: ``pursuit=0``.)"""
     world = _seen_gap_world()
-    ex = Executive(world, config=ExecutiveConfig(turn_cap_rate_limited=cap))
+    ex = Executive(world, config=ExecutiveConfig(turn_cap_rate_limited=cap, pursuit=0.0))
     assert ex.control.accel_max > 0
     sim = Simulator(world, seed=0)
     over = late = 0

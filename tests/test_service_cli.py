@@ -34,7 +34,7 @@ def test_help_documents_every_option(capsys):
         out = capsys.readouterr().out
         for opt in ["--world", "--task", "--robot", "--listen", "--connect", "--zenoh-config", "--record",
                     "--viewer", "--rate", "--duration", "--watchdog", "--accel-max", "--alpha-max", "--unlimited",
-                    "--no-crawl-guard",
+                    "--no-crawl-guard", "--fields",
                     *extra]:
             assert opt in out, (sub, opt)
 
@@ -71,6 +71,18 @@ def test_no_crawl_guard_turns_the_executives_guard_off():
     both = _executive_config(parse(["demo", "--no-crawl-guard", "--accel-max", "2"]))
     assert both.crawl_guard is None and both.controller.accel_max == 2.0
     assert _executive_config(parse(["demo", "--accel-max", "2"])).crawl_guard == CrawlConfig()
+
+
+def test_fields_tracks_each_waypoints_field_instead_of_pursuing_the_path():
+    from service.cli import _executive_config, build_parser
+    from tamp.executive import ExecutiveConfig
+
+    parse = build_parser().parse_args
+    assert ExecutiveConfig().pursuit == 0.3
+    cfg = _executive_config(parse(["run", "--world", "simple", "--fields"]))
+    assert cfg.pursuit == 0.0 and cfg == ExecutiveConfig(pursuit=0.0)
+    both = _executive_config(parse(["demo", "--fields", "--no-crawl-guard"]))
+    assert both.pursuit == 0.0 and both.crawl_guard is None
 
 
 @pytest.mark.parametrize("argv, needle", [

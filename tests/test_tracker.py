@@ -299,3 +299,21 @@ def test_the_engaged_stand_off_does_not_hold_a_robot_in_the_escape_band():
     reached, sim = run_closed_loop(world, field, start, cfg, max_steps=1200, tracker=tracker)
     assert reached, f"ended at {sim.pose} after {sim.time:.1f} s"
     assert sim.metrics.min_clearance > 0.0 and not sim.metrics.collisions
+
+
+def test_pursue_is_track_point_rate_limited_from_the_last_command_sent():
+    """``Tracker.pursue``: eq. 24 on the bearing of a point (``track_point``, the field's safety
+    limit), rate-limited from the last command, which it records; the plain mode."""
+    from navigation.control import track_point
+
+    world = shared_world("simple")
+    field = OrientedField(navigation.NavigationFunction(world, goal=(3.0, 2.0), inflation=world.robot.radius), 0.0)
+    cfg = ControllerConfig.from_robot(world.robot, **RATE_LIMITED)
+    tr = Tracker(cfg)
+    pose, point = (1.0, 1.0, 0.0), np.array([1.2, 1.3])
+    first = tr.pursue(0.0, pose, point, field, beyond=0.5)
+    assert first == track_point(pose, point, field, cfg, previous=(0.0, 0.0, 0.1), beyond=0.5)
+    assert tr.mode is Mode.PLAIN
+    second = tr.pursue(0.1, pose, point, field)
+    assert second == track_point(pose, point, field, cfg, previous=(first.v, first.omega, 0.1))
+    assert abs(second.omega - first.omega) <= cfg.alpha_max * 0.1 + 1e-12

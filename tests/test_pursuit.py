@@ -1,0 +1,108 @@
+"""Pursuit of the harmonic tree's path (``ExecutiveConfig.pursuit``): the look-ahead point on
+the leg, pulled back where the line to it is not clear, the field where nothing ahead is clear,
+and missions driven that way (tamp.executive, module doc "Pursuit")."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from navigation.world import World
+from tamp.errors import TampError
+from tamp.executive import PURSUIT_MARGIN, Executive, ExecutiveConfig
+from tamp.run import run_mission
+
+from .conftest import shared_world
+
+
+def _world(obstacles=()) -> World:
+    return World.from_dict({
+        "name": "pursuit", "workspace": {"center": [2.0, 1.5], "width": 4.0, "height": 3.0, "s": 0.99},
+        "obstacles": [{"center": list(c), "width": w, "height": h, "s": 0.9} for c, w, h in obstacles],
+        "regions": {"a": {"center": [3.5, 2.5], "radius": 0.15}},
+        "robot": {"radius": 0.1, "start": [0.5, 0.5, 0.0], "v_max": 0.5, "omega_max": 1.0},
+        "lidar": {"range": 1.5, "fov": 6.283185, "beams": 360, "noise_std": 0.0, "rate_hz": 10},
+        "task": "F a"})
+
+
+def _executive(obstacles=(), look=0.3) -> Executive:
+    return Executive(_world(obstacles), known=True, config=ExecutiveConfig(pursuit=look))
+
+
+def _leg(ex: Executive, *pts) -> None:
+    ex.leg = tuple((float(x), float(y), 0.0) for x, y in pts)
+    ex.wp = 1
+
+
+def test_the_point_pursued_is_the_look_ahead_along_a_straight_leg():
+    ex = _executive()
+    _leg(ex, (0.5, 0.5), (1.5, 0.5), (3.0, 0.5))
+    point, rest = ex._carrot(np.array([0.7, 0.55]))
+    assert point == pytest.approx([1.0, 0.5])
+    assert rest == pytest.approx(2.0)
+    assert ex.wp == 1
+    # past the first waypoint's segment: the next segment is the robot's
+    point, rest = ex._carrot(np.array([1.6, 0.52]))
+    assert ex.wp == 2
+    assert point == pytest.approx([1.9, 0.5]) and rest == pytest.approx(1.1)
+
+
+def test_the_point_pursued_rounds_a_corner_along_a_clear_line_and_stops_at_the_leg_end():
+    ex = _executive()
+    _leg(ex, (0.5, 0.5), (1.0, 0.5), (1.0, 0.7))
+    point, rest = ex._carrot(np.array([0.9, 0.5]))
+    assert point == pytest.approx([1.0, 0.7]) and rest == pytest.approx(0.0)  # the leg's end
+    _leg(ex, (0.5, 0.5), (1.0, 0.5), (1.0, 2.5))
+    point, rest = ex._carrot(np.array([0.9, 0.5]))
+    assert point == pytest.approx([1.0, 0.7]) and rest == pytest.approx(1.8)
+
+
+def test_a_corner_whose_chord_is_blocked_is_pursued_to_its_waypoint_and_a_blocked_way_falls_back_to_the_field():
+    # an obstacle inside the turn: its inflated shape (radius 0.1 + margin) covers the chord
+    # from (0.6, 0.5) to the look-ahead point (1.0, 0.9), not the leg's segments
+    ex = _executive([((0.75, 0.8), 0.1, 0.1)], look=0.8)
+    assert not ex._clear_line(np.array([0.6, 0.5]), np.array([1.0, 0.9]))
+    _leg(ex, (0.2, 0.5), (1.0, 0.5), (1.0, 2.5))
+    point, rest = ex._carrot(np.array([0.6, 0.5]))
+    assert point == pytest.approx([1.0, 0.5]) and rest == pytest.approx(2.0)
+    # an obstacle on the leg itself (an estimate grew over it): nothing ahead is clear
+    ex = _executive([((1.2, 0.5), 0.1, 0.1)])
+    _leg(ex, (0.5, 0.5), (2.0, 0.5), (3.0, 0.5))
+    assert ex._carrot(np.array([0.9, 0.5])) is None
+    # the margin: a line passing the inflated shape closer than PURSUIT_MARGIN is not clear
+    ex = _executive([((1.2, 0.8), 0.2, 0.2)])
+    inflated_edge = 0.8 - 0.1 - 0.1  # bottom face of the obstacle grown by the radius
+    assert ex._clear_line(np.array([0.5, inflated_edge - 2 * PURSUIT_MARGIN]),
+                          np.array([2.0, inflated_edge - 2 * PURSUIT_MARGIN]))
+    assert not ex._clear_line(np.array([0.5, inflated_edge - 0.5 * PURSUIT_MARGIN]),
+                              np.array([2.0, inflated_edge - 0.5 * PURSUIT_MARGIN]))
+
+
+def test_pursuit_is_validated():
+    with pytest.raises(TampError):
+        ExecutiveConfig(pursuit=-0.1)
+    with pytest.raises(TampError):
+        ExecutiveConfig(pursuit=math.nan)
+
+
+def _flips_per_metre(r: dict) -> float:
+    """Sign flips of the executed turn rate between consecutive 0.1 s periods (both above
+    0.05 rad/s) per metre: ``benchmarks.methods.chatter``."""
+    P = np.asarray(r["trajectory"], dtype=float)
+    w = np.arctan2(np.sin(np.diff(P[:, 2])), np.cos(np.diff(P[:, 2]))) / 0.1
+    on = np.abs(w) > 0.05
+    flips = int(np.count_nonzero(on[1:] & on[:-1] & (np.sign(w[1:]) != np.sign(w[:-1]))))
+    return flips / r["distance"]
+
+
+@pytest.mark.parametrize("name", ["simple", "office"])
+def test_pursuit_drives_shared_missions_safely_without_weaving_and_the_fields_still_can(name):
+    world = shared_world(name)
+    pursued = run_mission(world, max_time=300, record=True)  # the default: pursuit
+    assert ExecutiveConfig().pursuit > 0
+    fields = run_mission(world, max_time=300, record=True, config=ExecutiveConfig(pursuit=0.0))
+    for r in (pursued, fields):
+        assert r["completed"] and r["collisions"] == 0 and r["bad_commands"] == 0, r["message"]
+    assert _flips_per_metre(pursued) < 1.0 < _flips_per_metre(fields)
