@@ -98,11 +98,12 @@ def _flips_per_metre(r: dict) -> float:
 
 
 @pytest.mark.parametrize("name", ["simple", "office"])
-def test_pursuit_drives_shared_missions_safely_without_weaving_and_the_fields_still_can(name):
+def test_pursuit_drives_shared_missions_safely_with_less_than_half_the_fields_weaving(name):
     world = shared_world(name)
     pursued = run_mission(world, max_time=300, record=True)  # the default: pursuit
     assert ExecutiveConfig().pursuit > 0
     fields = run_mission(world, max_time=300, record=True, config=ExecutiveConfig(pursuit=0.0))
     for r in (pursued, fields):
         assert r["completed"] and r["collisions"] == 0 and r["bad_commands"] == 0, r["message"]
-    assert _flips_per_metre(pursued) < 1.0 < _flips_per_metre(fields)
+    # (measured on 46d72b1: simple 0.00 against 1.22, office 0.14 against 3.04 flips per metre)
+    assert _flips_per_metre(pursued) < min(1.0, 0.5 * _flips_per_metre(fields))
