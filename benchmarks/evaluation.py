@@ -2,7 +2,7 @@
 
 Run from the repository root::
 
-    python -m benchmarks.evaluation [--quick] [--out DIR] [--random N] [--methods HT OHPF NF RRT* oracle]
+    python -m benchmarks.evaluation [--quick] [--out DIR] [--random N] [--methods HT HT-fields OHPF NF RRT* oracle]
                                     [--jobs N] [--max-time S]
 
 Scenarios: the shared worlds ``office`` (its mission and its urgent ``u1`` event at 60 s) and
@@ -12,8 +12,9 @@ over their 4 regions). Obstacles are unknown except the world file's ``known_obs
 simulator is seeded with 0. ``--quick`` runs two small random worlds (8 obstacles, seeds 0
 and 1) and a reduced timing sweep: the CI smoke test.
 
-Methods (:mod:`benchmarks.methods`): ``HT``, ``OHPF``, ``NF``, ``RRT*`` (skipped, with the
-reason in the report, when OMPL's Python bindings do not work) and ``oracle``.
+Methods (:mod:`benchmarks.methods`): ``HT``, ``HT-fields`` (HT with the paper's execution, a
+field per waypoint), ``OHPF``, ``NF``, ``RRT*`` (skipped, with the reason in the report, when
+OMPL's Python bindings do not work) and ``oracle``.
 
 Every method's run on every scenario is a process of its own, forked from the prepared parent
 (:func:`benchmarks._common.isolated_map`): no run is timed with the memos (forest results, LTL
@@ -131,7 +132,8 @@ def _timing(quick: bool) -> dict:
 
 
 # -------------------------------------------------------------------------------- figures
-_COLOURS = {"HT": (0, 0, 220), "OHPF": (0, 150, 0), "NF": (220, 60, 0), "RRT*": (0, 140, 255)}  # BGR, as Fig. 14
+_COLOURS = {"HT": (0, 0, 220), "HT-fields": (200, 0, 200), "OHPF": (0, 150, 0), "NF": (220, 60, 0),
+            "RRT*": (0, 140, 255)}  # BGR, as Fig. 14 (HT-fields: magenta)
 
 
 def draw_trajectories(world, runs: dict, size: int = 720) -> np.ndarray:

@@ -8,6 +8,9 @@ between two copies of the surrounding machinery:
 
 =========  ===========================================================================
 ``HT``     the full system: :func:`tamp.run.run_mission` with :class:`tamp.Executive`.
+``HT-fields``  the full system executed as in paper 001 (eq. 24-25 on each waypoint's
+           oriented field, ``ExecutiveConfig(pursuit=0)``) instead of pursuing the tree's path
+           (docs/executive.md "Pursuit of the leg"): the two rows show what the pursuit changes.
 ``OHPF``   :class:`OHPFExecutive`: the same task planning and online plan adaptation
            (transition costs and feasibility from the harmonic trees' roadmap, re-planning on
            discoveries), but the robot drives every task transition with *one* oriented field
@@ -52,9 +55,9 @@ from tamp.run import run_mission
 __all__ = ["METHODS", "ADAPTATION", "OHPFExecutive", "NFExecutive", "RRTStarExecutive", "PlainField",
            "ompl_status", "run_method", "oracle_tour", "chatter", "chatter_sources"]
 
-METHODS = ("HT", "OHPF", "NF", "RRT*", "oracle")
+METHODS = ("HT", "HT-fields", "OHPF", "NF", "RRT*", "oracle")
 #: the paper's "Adaptation" column: does the task plan adapt to what the robot discovers
-ADAPTATION = {"HT": True, "OHPF": True, "NF": False, "RRT*": False, "oracle": None}
+ADAPTATION = {"HT": True, "HT-fields": True, "OHPF": True, "NF": False, "RRT*": False, "oracle": None}
 
 
 # --------------------------------------------------------------------------------------- OHPF
@@ -391,12 +394,16 @@ _CLASSES = {"OHPF": OHPFExecutive, "NF": NFExecutive, "RRT*": RRTStarExecutive}
 #: without going to look before stopping blocked, which both drive along harmonic trees (HT's
 #: execution layer; docs/executive.md), and tracking fields, not pursuing a tree's path
 BASELINE_CONFIG = ExecutiveConfig(route_rescue=False, look_tries=0, pursuit=0.0)
+#: HT with the paper's execution: every default but the pursuit of the leg
+FIELDS_CONFIG = ExecutiveConfig(pursuit=0.0)
 
 
 def run_method(method: str, world, task=None, *, seed: int = 0, max_time: float = 300.0) -> dict:
     """Run ``method`` (one of :data:`METHODS` but ``oracle``) on ``world``'s mission (or ``task``)."""
     if method == "HT":
         r = run_mission(world, task, seed=seed, max_time=max_time, record=True)
+    elif method == "HT-fields":
+        r = run_mission(world, task, seed=seed, max_time=max_time, record=True, config=FIELDS_CONFIG)
     elif method in _CLASSES:
         # the route rescue pursues harmonic trees' segments: part of HT's execution, not the baselines'
         r = run_mission(world, task, seed=seed, max_time=max_time, record=True, executive_cls=_CLASSES[method],

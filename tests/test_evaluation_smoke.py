@@ -2,7 +2,7 @@
 markdown report and figures, and HT completes its missions without collision; a missing or
 broken OMPL skips RRT* with the reason in the report instead of failing the suite.
 
-CI-sized: two 8-obstacle random worlds, HT, NF and the oracle (RRT* is exercised only through
+CI-sized: two 8-obstacle random worlds, HT, HT-fields, NF and the oracle (RRT* is exercised only through
 its skip path, so the test passes whether or not ``ompl`` is installed).
 """
 
@@ -21,12 +21,14 @@ from benchmarks.methods import chatter, chatter_sources
 
 def test_quick_run_writes_report_and_ht_completes(tmp_path, capsys):
     out = tmp_path / "eval"
-    assert evaluation.main(["--quick", "--methods", "HT", "NF", "oracle", "--out", str(out)]) == 0
+    assert evaluation.main(["--quick", "--methods", "HT", "HT-fields", "NF", "oracle", "--out", str(out)]) == 0
     data = json.loads((out / "evaluation.json").read_text())
     assert [s["scenario"] for s in data["scenarios"]] == ["random0", "random1"]
     for s in data["scenarios"]:
         ht = s["runs"]["HT"]
         assert ht["completed"] and ht["collisions"] == 0 and ht["bad_commands"] == 0
+        fields = s["runs"]["HT-fields"]  # the paper's execution of the same system
+        assert fields["completed"] and fields["collisions"] == 0 and fields["bad_commands"] == 0
         assert s["runs"]["oracle"]["distance"] > 0 and ht["ratio"] > 0
         assert "error" not in s["runs"]["NF"], s["runs"]["NF"]["error"]  # a baseline that raised
         assert "trajectory" not in ht  # trajectories go to the figures, not the JSON
@@ -37,7 +39,7 @@ def test_quick_run_writes_report_and_ht_completes(tmp_path, capsys):
     assert data["aggregates"]["HT"]["success_rate"] == 1.0
     assert {"median", "p90"} == set(data["aggregates"]["HT"]["distance"])
     report = (out / "evaluation.md").read_text()
-    assert "## Random forest worlds (2)" in report and "| HT | 2/2 |" in report
+    assert "## Random forest worlds (2)" in report and "| HT | 2/2 |" in report and "| HT-fields | 2/2 |" in report
     assert "## Where the chatter comes from" in report
     for name in ("traj_random0.png", "traj_random1.png", "potential_time.png"):
         img = cv2.imread(str(out / name))
@@ -45,6 +47,17 @@ def test_quick_run_writes_report_and_ht_completes(tmp_path, capsys):
     printed = capsys.readouterr()
     assert printed.out.strip() == report.strip()
     assert "[eval] random0 HT" in printed.err
+
+
+def test_ht_fields_is_ht_with_the_papers_execution_and_the_baselines_track_fields():
+    import dataclasses
+
+    from benchmarks.methods import BASELINE_CONFIG, FIELDS_CONFIG, METHODS
+    from tamp.executive import ExecutiveConfig
+
+    assert METHODS[:2] == ("HT", "HT-fields")
+    assert FIELDS_CONFIG.pursuit == 0.0 and BASELINE_CONFIG.pursuit == 0.0 and ExecutiveConfig().pursuit > 0
+    assert dataclasses.replace(FIELDS_CONFIG, pursuit=ExecutiveConfig().pursuit) == ExecutiveConfig()
 
 
 def test_rrt_star_skipped_with_reason_without_ompl(tmp_path, monkeypatch):
