@@ -867,7 +867,7 @@ class Executive:
         self.leg: tuple = ()
         self.wp = 0
         self._fields: dict = {}
-        self._pursuit_rows = None  # (forest, its packed inflated obstacles): the pursuit's line tests
+        self._rows = None  # (forest, its obstacles packed, and widened for the pursuit's line tests)
         self._pursuable = False  # the leg is a tree's path (pursuit may follow it)
         self._pursued = False  # the last command pursued the leg (not a waypoint's field)
         self._need_plan = True
@@ -1791,7 +1791,7 @@ class Executive:
     def _free(self, pts: np.ndarray) -> np.ndarray:
         """Which of the points ``pts (N, 2)`` lie in the forest's free space (one pass over the
         workspace and the obstacles for all of them)."""
-        return _outside_all(pack(list(self.forest.obstacles)), self.forest.workspace, pts)
+        return _outside_all(self._forest_rows()[0], self.forest.workspace, pts)
 
     def _field(self, wp) -> OrientedField | None:
         key = (wp, id(self.forest))
@@ -1824,49 +1824,36 @@ class Executive:
         if self.config.pursuit > 0 and self._pursuable and self.wp >= 1 and not self._tracker.route:
             carrot = self._carrot(q)
         self._watch(q)
-        self._pursued = carrot is not None
-        if carrot is not None:
-            # pursuit (module doc): eq. 24 on the bearing of the point ahead; the leg end's
-            # field gives the safety limit and the escape band
-            cur = self._field(self.leg[-1])
-            if cur is None:
-                return 0.0, 0.0
-            try:
-                cmd = self._tracker.pursue(self.time, p, carrot[0], cur, beyond=carrot[1])
-            except NavigationError as err:
-                self._note(f"controller refused the pose: {err}")
-                return 0.0, 0.0
-            return self._finish(p, q, cur, cmd, math.inf, tol)
-        cur = self._field(self.leg[self.wp])
+        pursuing = self._pursued = carrot is not None
+        # pursuing (module doc): eq. 24 on the bearing of the point ahead, the leg end's field
+        # giving the safety limit and the escape band; else the current waypoint's field
+        cur = self._field(self.leg[-1] if pursuing else self.leg[self.wp])
         if cur is None:
             return 0.0, 0.0
-        # the following waypoint's field only where eq. 25 gives it a weight: eta is exactly 0
-        # farther than about 1 m from the current waypoint, where the blend returns the current
-        # field's direction and the safety limit is the forest's (shared by both fields), i.e.
-        # the command of ``track`` alone; a field is one navigation function (several ms), so
-        # after a map change it is built when the robot comes near, not on the changing tick
-        fol = None
-        if self.wp + 1 < len(self.leg) and switch_weight(float(np.linalg.norm(q - cur.goal)), self.control) > 0.0:
-            fol = self._field(self.leg[self.wp + 1])
-        # reachable turns (module doc): in the rate-limited mode the cap goes in before the rate
-        # limit, which brakes towards it; without that mode it is applied to the command below
         rate_limited = self.control.accel_max > 0
-        cap = (reachable_speed(p, self.leg[self.wp], self.control.omega_max)
-               if self.config.turn_cap and (self.config.turn_cap_rate_limited or not rate_limited) else math.inf)
+        fol, cap = None, math.inf  # (pursuing, no waypoint is aimed at: no turn cap)
+        if not pursuing:
+            # the following waypoint's field only where eq. 25 gives it a weight: eta is exactly 0
+            # farther than about 1 m from the current waypoint, where the blend returns the current
+            # field's direction and the safety limit is the forest's (shared by both fields), i.e.
+            # the command of ``track`` alone; a field is one navigation function (several ms), so
+            # after a map change it is built when the robot comes near, not on the changing tick
+            if self.wp + 1 < len(self.leg) and switch_weight(float(np.linalg.norm(q - cur.goal)), self.control) > 0.0:
+                fol = self._field(self.leg[self.wp + 1])
+            # reachable turns (module doc): in the rate-limited mode the cap goes in before the rate
+            # limit, which brakes towards it; without that mode it is applied to the command below
+            if self.config.turn_cap and (self.config.turn_cap_rate_limited or not rate_limited):
+                cap = reachable_speed(p, self.leg[self.wp], self.control.omega_max)
         v_cap = cap if rate_limited else math.inf
         # crawl guard: the stand-off while the robot crawls (navigation.tracker)
         try:
-            cmd = self._tracker.command(self.time, p, cur, fol, self._beyond(), v_cap=v_cap)
+            if pursuing:
+                cmd = self._tracker.pursue(self.time, p, carrot[0], cur, beyond=carrot[1])
+            else:
+                cmd = self._tracker.command(self.time, p, cur, fol, self._beyond(), v_cap=v_cap)
         except NavigationError as err:
             self._note(f"controller refused the pose: {err}")
             return 0.0, 0.0
-        return self._finish(p, q, cur, cmd, cap, tol)
-
-    def _finish(self, p, q, cur, cmd, cap, tol):
-        """The command ``cmd`` of :meth:`_command` (tracking the field ``cur`` or pursuing the
-        leg) through the turn onto a leg, the turn cap ``cap`` (without the rate limit), the
-        motion guard, the slide and the stall guard."""
-        rate_limited = self.control.accel_max > 0
         if self.time < self._align_until and cmd.v > 0.0:
             if abs(math.remainder(cmd.theta_gamma - p[2], 2 * math.pi)) > self.config.align_angle:
                 cmd = replace(cmd, v=0.0)  # turn (eq. 24b) on the spot
@@ -1941,27 +1928,36 @@ class Executive:
             k += 1
         if point is None:
             point, rest = np.asarray(leg[last][:2]), 0.0
-        if k > self.wp and not self._clear_line(q, point):
-            # round a corner only along a clear line: else the end of the robot's segment
-            point = b
-            rest = sum(math.dist(leg[j][:2], leg[j + 1][:2]) for j in range(self.wp, last))
-            if not self._clear_line(q, point):
-                ahead = a + min(1.0, u + L / math.sqrt(n2)) * ab if n2 > 0 else b
-                rest += float(np.hypot(*(b - ahead)))
-                point = ahead
-        if not self._clear_line(q, point):
+        if self._clear_line(q, point):
+            return point, rest
+        if k == self.wp:  # the point is on the robot's own segment
             return None  # the way ahead is not clear (an estimate grew over it): the field
-        return point, rest
+        # round a corner only along a clear line: else the end of the robot's segment, else the
+        # point ahead on that segment
+        rest = sum(math.dist(leg[j][:2], leg[j + 1][:2]) for j in range(self.wp, last))
+        if self._clear_line(q, b):
+            return b, rest
+        ahead = a + min(1.0, u + L / math.sqrt(n2)) * ab if n2 > 0 else b
+        if self._clear_line(q, ahead):
+            return ahead, rest + float(np.hypot(*(b - ahead)))
+        return None
+
+    def _forest_rows(self) -> tuple[np.ndarray, np.ndarray]:
+        """The forest's obstacles packed (:func:`navigation.geometry.pack`), and the same
+        rows with :data:`PURSUIT_MARGIN` added to their half-extents; once per forest."""
+        if self._rows is None or self._rows[0] is not self.forest:
+            P = pack(list(self.forest.obstacles))
+            wide = P.copy()
+            wide[:, 4:6] += PURSUIT_MARGIN
+            P.flags.writeable = wide.flags.writeable = False
+            self._rows = (self.forest, P, wide)
+        return self._rows[1], self._rows[2]
 
     def _clear_line(self, q, point) -> bool:
         """The segment from ``q`` to ``point`` misses every obstacle of the forest (known and
         estimated, inflated by the robot radius: what the fields and the safety limit avoid)
-        grown by :data:`PURSUIT_MARGIN` (the packed rows, once per forest)."""
-        if self._pursuit_rows is None or self._pursuit_rows[0] is not self.forest:
-            P = pack(self.forest.obstacles)
-            P[:, 4:6] += PURSUIT_MARGIN
-            self._pursuit_rows = (self.forest, P)
-        P = self._pursuit_rows[1]
+        grown by :data:`PURSUIT_MARGIN`."""
+        P = self._forest_rows()[1]
         if not len(P):
             return True
         return bool(segments_clear(P, np.asarray(q, float)[None], np.asarray(point, float)[None])[0])
