@@ -695,7 +695,7 @@ ESCAPE_SPEED = 0.02  #: speed (m/s) of that creep
 
 def _command(theta: float, tg: float, grad: np.ndarray, speed: float, clearance: float,
              cfg: ControllerConfig, approach: float = math.inf, previous=None, away: float | None = None,
-             turn: float = 0.0, feedforward: float = 1.0) -> Command:
+             turn: float = 0.0, feedforward: float = 1.0, gate: float = math.pi / 2) -> Command:
     """Eq. 24 on the direction ``tg`` (gradient ``grad``): heading gate, saturation, safety
     limit and rate limit applied to ``v`` before it enters the feed-forward term (times
     ``feedforward``), then ``omega`` and its rate limit (``previous = (v, omega, dt)``, see
@@ -708,7 +708,7 @@ def _command(theta: float, tg: float, grad: np.ndarray, speed: float, clearance:
     err = wrap_angle(theta - tg)
     v = cfg.k_v * speed
     if cfg.heading_gate:
-        v *= max(0.0, math.cos(err))
+        v *= _gate(err, gate)
     raw = v
     prev = _previous(previous)
     rate_v = prev is not None and cfg.accel_max > 0
@@ -742,6 +742,17 @@ def _command(theta: float, tg: float, grad: np.ndarray, speed: float, clearance:
         ws = min(max(ws, pw - dw), pw + dw, cfg.omega_max)
         ws = max(ws, -cfg.omega_max)
     return Command(v, ws, tg, ws != omega or v != raw)
+
+
+def _gate(err: float, gate: float) -> float:
+    """The heading gate's factor on ``v`` for the heading error ``err``: ``max(0, cos err)``
+    (``gate = pi / 2``), or ``max(0, (cos err - cos gate) / (1 - cos gate))`` for a smaller
+    ``gate``: 1 on the tracked direction, 0 (turn on the spot) beyond ``gate``, continuous."""
+    c = math.cos(err)
+    if gate >= math.pi / 2:
+        return max(0.0, c)
+    g = math.cos(gate)
+    return max(0.0, (c - g) / (1.0 - g))
 
 
 EXACT_BELOW = 0.005  #: clearance bound (m) below which the safety limit uses the exact clearance
@@ -821,7 +832,7 @@ def track(pose, field: OrientedField, config: ControllerConfig = ControllerConfi
 
 
 def track_point(pose, point, field: OrientedField, config: ControllerConfig = ControllerConfig(),
-                previous=None, beyond: float = 0.0, v_cap: float = math.inf) -> Command:
+                previous=None, beyond: float = 0.0, v_cap: float = math.inf, gate: float = math.pi / 2) -> Command:
     """Eq. 24 on the bearing of a visible ``point (2,)`` instead of a field's direction.
 
     ``theta_gamma = atan2(p - q)``, its gradient exact (``(d_y, -d_x) / |d|^2`` for
@@ -831,16 +842,26 @@ def track_point(pose, point, field: OrientedField, config: ControllerConfig = Co
     :class:`~navigation.tracker.Tracker` uses it for the straight segments of a route whose
     fields run the long way round (module doc there). The safety limit alone keeps the robot
     off the boundaries: a point that is not visible is approached until the robot stops.
+    ``gate`` (radians, in ``(0, pi / 2]``) narrows the heading gate: ``v`` times
+    ``max(0, (cos e - cos gate) / (1 - cos gate))`` for the heading error ``e``, 0 beyond
+    ``gate`` (turn on the spot); ``pi / 2`` is eq. 24a's ``max(0, cos e)``. The executive's
+    pursuit of the leg uses 60 degrees (``tamp.executive``, module doc "Pursuit").
 
     Raises
     ------
     NavigationError
         Non-finite or malformed pose, point, previous command or ``beyond``; ``v_cap`` NaN or
-        negative.
+        negative; ``gate`` outside ``(0, pi / 2]``.
     """
     q, theta = _pose(pose)
     beyond = _beyond(beyond)
     v_cap = _v_cap(v_cap)
+    try:
+        gate = float(gate)
+    except (TypeError, ValueError):
+        gate = math.nan
+    if not 0.0 < gate <= math.pi / 2:
+        raise NavigationError(f"gate must be an angle in (0, pi / 2] radians, got {gate!r}")
     p, single = as_points(point, "point")
     if not single:
         raise PointsError(f"Expected `point` to have shape (2,), got {np.shape(point)}.")
@@ -850,7 +871,7 @@ def track_point(pose, point, field: OrientedField, config: ControllerConfig = Co
     tg, grad, dist = _bearing(q, p[0])
     if tg is None:  # on the point: hold the heading
         tg = theta
-    return _command(theta, tg, grad, math.tanh(dist + beyond), room, config, v_cap, previous, away)
+    return _command(theta, tg, grad, math.tanh(dist + beyond), room, config, v_cap, previous, away, gate=gate)
 
 
 def _bearing(q: np.ndarray, p: np.ndarray) -> tuple[float | None, np.ndarray, float]:

@@ -443,12 +443,13 @@ class Tracker:
         return cmd
 
     def pursue(self, t: float, pose, point, field: OrientedField, beyond: float = 0.0,
-               v_cap: float = math.inf) -> Command:
+               v_cap: float = math.inf, gate: float = math.pi / 2) -> Command:
         """The command towards ``point`` (eq. 24 on its bearing, :func:`~navigation.control.track_point`,
         the safety limit of ``field``'s forest), rate-limited from the last command."""
         t = float(t)
         self._mode = Mode.PLAIN
-        cmd = track_point(pose, point, field, self.config, previous=self._previous(t), beyond=beyond, v_cap=v_cap)
+        cmd = track_point(pose, point, field, self.config, previous=self._previous(t), beyond=beyond, v_cap=v_cap,
+                          gate=gate)
         self._sent = (t, cmd.v, cmd.omega)
         return cmd
 

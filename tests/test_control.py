@@ -765,6 +765,24 @@ def test_track_point_is_eq_24_on_the_bearing_within_the_safety_limit():
             assert cmd.omega == pytest.approx(min(max(w, -cfg.omega_max), cfg.omega_max), abs=1e-12)
     on = navigation.track_point((3.0, 2.2, 0.3), point, field, cfg)
     assert on.v == 0.0 and on.omega == 0.0 and on.theta_gamma == 0.3
+    # a narrower heading gate: v scaled by (cos e - cos g) / (1 - cos g), 0 beyond g; pi / 2
+    # is eq. 24a's max(0, cos e) exactly
+    g = math.pi / 3
+    for q in pts[:40]:
+        for theta in np.linspace(-math.pi, math.pi, 13):
+            pose = (q[0], q[1], float(theta))
+            wide = navigation.track_point(pose, point, field, cfg, beyond=0.7)
+            assert navigation.track_point(pose, point, field, cfg, beyond=0.7, gate=math.pi / 2) == wide
+            narrow = navigation.track_point(pose, point, field, cfg, beyond=0.7, gate=g)
+            err = wrap_angle(theta - _bearing(q, point)[0])
+            v = min(cfg.k_v * math.tanh(_bearing(q, point)[2] + 0.7)
+                    * max(0.0, (math.cos(err) - math.cos(g)) / (1 - math.cos(g))), cfg.v_max)
+            assert narrow.v <= min(v, wide.v) + 1e-12
+            if abs(err) >= g:
+                assert narrow.v == 0.0
+    for bad in (0.0, -1.0, math.pi / 2 + 1e-9, math.nan):
+        with pytest.raises(NavigationError, match="gate"):
+            navigation.track_point((1.0, 1.0, 0.0), point, field, cfg, gate=bad)
     for bad in [(math.nan, 1.0), (1.0,), "here", (1.0, 2.0, 3.0)]:
         with pytest.raises(NavigationError, match="point"):
             navigation.track_point((1.0, 1.0, 0.0), bad, field, cfg)

@@ -862,11 +862,14 @@ def test_a_patrol_keeps_every_region_after_an_urgent_request():
     serving it the robot goes round all three regions again. Planning from the whole set of
     automaton states let the plans take turns between runs: the robot went between ``p1`` and
     ``d3`` for good and still counted accepting visits (MissionPlanner, "One run of the
-    automaton")."""
+    automaton"). The run completes after one suffix round (accepting twice), so the visits after
+    ``u1`` hold every region at least once (the bug alternated between two of them), and the
+    whole run every region at least twice."""
     r = run_mission(shared_world("office"), "G F p1 & G F d1 & G F d3", max_time=300)
     _check_run(r)
     after = r["visited"][r["visited"].index("u1") + 1:]
-    assert all(after.count(name) >= 2 for name in ("p1", "d1", "d3")), r["visited"]
+    assert {"p1", "d1", "d3"} <= set(after), r["visited"]
+    assert all(r["visited"].count(name) >= 2 for name in ("p1", "d1", "d3")), r["visited"]
 
 
 def test_an_urgent_request_for_a_new_region_is_served_first_and_the_mission_completes():
@@ -1312,10 +1315,12 @@ def test_a_waypoint_is_passed_within_the_tolerance_or_beyond_its_line():
 def test_turning_onto_a_leg_on_the_spot(angle, hold):
     """``align_angle`` / ``align_time``: a robot 80 degrees off its leg (inside eq. 24a's
     90-degree gate, so eq. 24 alone drives off at once, on a curve) first turns on the spot
-    until within ``align_angle``, for at most ``align_time`` seconds; then eq. 24 as usual."""
+    until within ``align_angle``, for at most ``align_time`` seconds; then eq. 24 as usual. (The
+    pursuit's own narrower gate, ``pursuit_gate``, would hold the robot beyond 60 degrees
+    whatever the rule: eq. 24a's gate here, to test the rule alone.)"""
     world = _open_two_regions("F a")  # a is straight ahead to the west (heading pi)
     unlimited = dataclasses.replace(ExecutiveConfig().controller, **UNLIMITED)  # off with the rate limit
-    cfg = ExecutiveConfig(align_angle=angle, align_time=hold, controller=unlimited)
+    cfg = ExecutiveConfig(align_angle=angle, align_time=hold, controller=unlimited, pursuit_gate=math.pi / 2)
     ex = Executive(world, known=True, config=cfg)
     x, y, _ = world.robot.start
     theta = math.pi - math.radians(80)

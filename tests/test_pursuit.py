@@ -27,8 +27,8 @@ def _world(obstacles=()) -> World:
         "task": "F a"})
 
 
-def _executive(obstacles=(), look=0.3) -> Executive:
-    return Executive(_world(obstacles), known=True, config=ExecutiveConfig(pursuit=look))
+def _executive(obstacles=(), look=0.3, **kw) -> Executive:
+    return Executive(_world(obstacles), known=True, config=ExecutiveConfig(pursuit=look, **kw))
 
 
 def _leg(ex: Executive, *pts) -> None:
@@ -85,6 +85,33 @@ def test_pursuit_is_validated():
         ExecutiveConfig(pursuit=-0.1)
     with pytest.raises(TampError):
         ExecutiveConfig(pursuit=math.nan)
+    for bad in (0.0, -0.5, math.pi / 2 + 1e-9, math.nan, math.inf, "wide", True, None):
+        with pytest.raises(TampError, match="pursuit_gate"):
+            ExecutiveConfig(pursuit_gate=bad)
+
+
+@pytest.mark.parametrize("off", [50.0, 70.0, 85.0])
+def test_the_pursuit_turns_on_the_spot_while_the_point_is_beyond_its_gate(off):
+    """``pursuit_gate`` (60 degrees by default): the robot moves off only once the pursued point
+    is within the gate of its heading; eq. 24a's own gate (``pi / 2``) drives off at up to 90
+    degrees. Rate-limited mode (the executive's default), from rest."""
+    assert ExecutiveConfig().pursuit_gate == pytest.approx(math.pi / 3)
+    cmds = {}
+    for gate in (math.pi / 3, math.pi / 2):
+        ex = _executive(pursuit_gate=gate)
+        assert ex.control.accel_max > 0
+        _leg(ex, (0.5, 0.5), (3.0, 0.5))
+        ex._pursuable = True
+        cmds[gate] = [ex._command((0.5, 0.5, math.radians(off)))]
+        assert ex._pursued
+    v60, w60 = cmds[math.pi / 3][0]
+    v90, w90 = cmds[math.pi / 2][0]
+    assert w60 < 0 and w90 < 0  # turning towards the point either way
+    assert v90 > 0.0
+    if off > 60.0:
+        assert v60 == 0.0
+    else:
+        assert 0.0 < v60 <= v90  # (both within the rate limit from rest here)
 
 
 def _flips_per_metre(r: dict) -> float:
