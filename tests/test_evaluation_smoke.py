@@ -38,6 +38,10 @@ def test_quick_run_writes_report_and_ht_completes(tmp_path, capsys):
         assert per_m["handover"] + per_m["replan"] + per_m["tracking"] == pytest.approx(ht["chatter"])  # one source each
     assert data["aggregates"]["HT"]["success_rate"] == 1.0
     assert {"median", "p90"} == set(data["aggregates"]["HT"]["distance"])
+    for m in ("HT", "HT-fields", "NF"):  # the planning sum: every run's planning total
+        assert data["aggregates"][m]["planning_sum"] == pytest.approx(
+            sum(s["runs"][m]["planning_time"] for s in data["scenarios"]))
+    assert data["aggregates"]["oracle"]["planning_sum"] is None
     report = (out / "evaluation.md").read_text()
     assert "## Random forest worlds (2)" in report and "| HT | 2/2 |" in report and "| HT-fields | 2/2 |" in report
     assert "## Where the chatter comes from" in report
