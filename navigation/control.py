@@ -28,7 +28,9 @@ Choices where the paper is silent or loose, and why:
   obstacle. We multiply by ``max(0, cos(theta - theta_gamma))`` (``ControllerConfig.heading_gate``):
   the robot turns in place when it faces away from the field and otherwise moves with a
   positive component along it. At the goal it still converges, since
-  ``theta_gamma -> theta_G`` along the arrival direction.
+  ``theta_gamma -> theta_G`` along the arrival direction. :func:`track_point` takes a
+  narrower ``gate`` (``max(0, (cos e - cos gate) / (1 - cos gate))``, 0 beyond ``gate``): the
+  executive's pursuit of a leg turns on the spot beyond 60 degrees instead of arcing off it.
 * **Which direction is tracked** (``ControllerConfig.push_forward``, default off). By default
   ``theta_gamma`` is the direction of ``Upsilon = -grad phi_ONF`` (eq. 23). Where the
   navigation transformation is strongly anisotropic (singular values of ``dPhi/dq`` 50 to 1 and
@@ -856,12 +858,7 @@ def track_point(pose, point, field: OrientedField, config: ControllerConfig = Co
     q, theta = _pose(pose)
     beyond = _beyond(beyond)
     v_cap = _v_cap(v_cap)
-    try:
-        gate = float(gate)
-    except (TypeError, ValueError):
-        gate = math.nan
-    if not 0.0 < gate <= math.pi / 2:
-        raise NavigationError(f"gate must be an angle in (0, pi / 2] radians, got {gate!r}")
+    gate = _gate_angle(gate)
     p, single = as_points(point, "point")
     if not single:
         raise PointsError(f"Expected `point` to have shape (2,), got {np.shape(point)}.")
@@ -898,6 +895,14 @@ def _non_negative(value, what: str, finite: bool) -> float:
 
 def _v_cap(v_cap) -> float:
     return _non_negative(v_cap, "v_cap must be a speed >= 0 (m/s) or inf", finite=False)
+
+
+def _gate_angle(gate) -> float:
+    """``gate`` as a float in ``(0, pi / 2]`` (radians), else a NavigationError."""
+    x = _non_negative(gate, "gate must be an angle in (0, pi / 2] radians", finite=True)
+    if not 0.0 < x <= math.pi / 2:
+        raise NavigationError(f"gate must be an angle in (0, pi / 2] radians, got {gate!r}")
+    return x
 
 
 def _beyond(beyond) -> float:
