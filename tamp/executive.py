@@ -56,9 +56,13 @@ Choices where the paper is vague, and why
   :data:`PURSUIT_MARGIN` (2 cm: packed rows whose half-extents are widened, tested exactly by
   ``tamp.roadmap.segments_clear``); else
   the robot pursues the end of its segment (the corner), else the point ``pursuit`` ahead on
-  its segment, and when not even that line is clear (an estimate grew over the leg) it tracks
-  the current waypoint's field as in the paper for that tick (a re-plan follows from the
-  leg's own check). A waypoint counts as passed once the robot's projection is past the end
+  its segment; that point (and only it) is also pursued when its line clears the inflated
+  obstacles without the margin (forty-third session: in a passage whose free width leaves
+  less than the margin beside the robot's offset from the path, every line failed the
+  margin and the waypoint's field crawled and turned back at the entrance, `cluttered20`'s
+  0.27 m passage beside the east bar: 18 s lost, then the long way round), and when not
+  even that line is clear (an estimate grew over the leg) it tracks the current waypoint's
+  field as in the paper for that tick (a re-plan follows from the leg's own check). A waypoint counts as passed once the robot's projection is past the end
   of its segment or the robot is nearer the next segment. The fields keep the safety limit,
   the escape band, the legs that are no tree's path (a start inside a buffer zone), the route
   rescue and the baselines' OHPF. Measured (``python -m benchmarks.executive --random 60
@@ -1914,8 +1918,10 @@ class Executive:
         """Pursuit: ``(point, rest)``, the point ``pursuit`` metres of path ahead of the robot's
         projection on the leg (the leg's end at most) and the path length after it, pulled back
         to the end of the robot's segment, then to the path ahead on that segment, when the line
-        from the robot to it is not clear of the inflated obstacles. Advances ``wp`` past the
-        waypoints whose segment the robot has left."""
+        from the robot to it is not clear of the inflated obstacles grown by the margin; the
+        path ahead on the robot's segment also when its line clears the inflated obstacles
+        alone; None when nothing is clear. Advances ``wp`` past the waypoints whose segment the
+        robot has left."""
         L = self.config.pursuit
         leg = self.leg
         last = len(leg) - 1
@@ -1953,14 +1959,16 @@ class Executive:
         if self._clear_line(q, point):
             return point, rest
         if k == self.wp:  # the point is on the robot's own segment
-            return None  # the way ahead is not clear (an estimate grew over it): the field
+            # not clear by the margin: a passage narrower than the margin leaves room for the
+            # robot's offset from the path, or an estimate grew over the way ahead (the field)
+            return (point, rest) if self._clear_line(q, point, exact=True) else None
         # round a corner only along a clear line: else the end of the robot's segment, else the
-        # point ahead on that segment
+        # point ahead on that segment (by the margin, else by the inflated obstacles alone)
         rest = sum(math.dist(leg[j][:2], leg[j + 1][:2]) for j in range(self.wp, last))
         if self._clear_line(q, b):
             return b, rest
         ahead = a + min(1.0, u + L / math.sqrt(n2)) * ab if n2 > 0 else b
-        if self._clear_line(q, ahead):
+        if self._clear_line(q, ahead) or self._clear_line(q, ahead, exact=True):
             return ahead, rest + float(np.hypot(*(b - ahead)))
         return None
 
@@ -1975,11 +1983,11 @@ class Executive:
             self._rows = (self.forest, P, wide)
         return self._rows[1], self._rows[2]
 
-    def _clear_line(self, q, point) -> bool:
+    def _clear_line(self, q, point, exact: bool = False) -> bool:
         """The segment from ``q`` to ``point`` misses every obstacle of the forest (known and
         estimated, inflated by the robot radius: what the fields and the safety limit avoid)
-        grown by :data:`PURSUIT_MARGIN`."""
-        P = self._forest_rows()[1]
+        grown by :data:`PURSUIT_MARGIN` (``exact``: not grown)."""
+        P = self._forest_rows()[0 if exact else 1]
         if not len(P):
             return True
         return bool(segments_clear(P, np.asarray(q, float)[None], np.asarray(point, float)[None])[0])

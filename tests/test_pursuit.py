@@ -80,6 +80,34 @@ def test_a_corner_whose_chord_is_blocked_is_pursued_to_its_waypoint_and_a_blocke
                               np.array([2.0, inflated_edge - 0.5 * PURSUIT_MARGIN]))
 
 
+def test_a_point_ahead_whose_line_misses_the_inflated_obstacles_only_within_the_margin_is_pursued():
+    """A passage narrower than the margin leaves beside the robot's offset from its path: the
+    line to the point ahead on the robot's own segment passes an obstacle grown by the radius
+    closer than ``PURSUIT_MARGIN`` but clear of it; the point is pursued (before the
+    forty-third session the waypoint's field took over and crawled at the passage's
+    entrance). Round a corner the same holds for the point ahead on the robot's segment, not
+    for the look-ahead point beyond the corner."""
+    ex = _executive([((1.3, 0.8), 0.8, 0.2)])
+    y = 0.8 - 0.1 - 0.1 - 0.5 * PURSUIT_MARGIN  # half the margin below the inflated bottom face
+    q = np.array([1.0, y])
+    assert not ex._clear_line(q, np.array([1.3, y])) and ex._clear_line(q, np.array([1.3, y]), exact=True)
+    _leg(ex, (0.5, y), (3.0, y))
+    point, rest = ex._carrot(q)
+    assert point == pytest.approx([1.3, y]) and rest == pytest.approx(1.7)
+    # a corner ahead whose next segment runs into the obstacle: the chord is blocked, the
+    # corner fails the margin, the point ahead on the segment is pursued by the inflated
+    # obstacle alone
+    _leg(ex, (0.5, y), (1.2, y), (1.2, y + 0.5))
+    assert not ex._clear_line(q, np.array([1.2, y + 0.1]), exact=True)
+    point, rest = ex._carrot(q)
+    assert point == pytest.approx([1.2, y]) and rest == pytest.approx(0.5)
+    assert ex.wp == 1
+    # an obstacle over the way ahead (an estimate grew over the leg): nothing is clear
+    ex = _executive([((1.3, 0.8), 0.8, 0.2), ((1.25, y), 0.05, 0.05)])
+    _leg(ex, (0.5, y), (3.0, y))
+    assert ex._carrot(q) is None
+
+
 def test_pursuit_is_validated():
     with pytest.raises(TampError):
         ExecutiveConfig(pursuit=-0.1)
