@@ -362,7 +362,8 @@ def render_markdown(result: dict) -> str:
 
             out.append(f"| {m} | {a['completed']}/{a['runs']} | {a['collisions']} | {a['flagged']} | {mp('distance')} | "
                        f"{mp('ratio')} | {mp('execution_time', '{:.1f}')} | {mp('planning_time', '{:.3f}')} | "
-                       f"{_f(a.get('planning_sum'), '{:.2f}')} | {mp('initial_planning_time', '{:.3f}')} | {mp('max_replan_time', '{:.3f}')} | "
+                       f"{_f(a.get('planning_sum'), '{:.2f}')} | {mp('initial_planning_time', '{:.3f}')} | "
+                       f"{mp('max_replan_time', '{:.3f}')} | "
                        f"{mp('replans', '{:.0f}')} | {mp('oscillation')} | {mp('chatter')} | {mp('min_clearance', '{:.3f}')} |")
         out += ["", "Per world (distance m; `x` = not completed, `!` = collision):", "",
                 "| world | " + " | ".join(methods) + " |", "|---|" + "---:|" * len(methods)]

@@ -59,11 +59,12 @@ Choices where the paper is vague, and why
   its segment; that point (and only it) is also pursued when its line clears the inflated
   obstacles without the margin (forty-third session: in a passage whose free width leaves
   less than the margin beside the robot's offset from the path, every line failed the
-  margin and the waypoint's field crawled and turned back at the entrance, `cluttered20`'s
+  margin and the waypoint's field crawled and turned back at the entrance, ``cluttered20``'s
   0.27 m passage beside the east bar: 18 s lost, then the long way round), and when not
   even that line is clear (an estimate grew over the leg) it tracks the current waypoint's
-  field as in the paper for that tick (a re-plan follows from the leg's own check). A waypoint counts as passed once the robot's projection is past the end
-  of its segment or the robot is nearer the next segment. The fields keep the safety limit,
+  field as in the paper for that tick (a re-plan follows from the leg's own check). A
+  waypoint counts as passed once the robot's projection is past the end of its segment or
+  the robot is nearer the next segment. The fields keep the safety limit,
   the escape band, the legs that are no tree's path (a start inside a buffer zone), the route
   rescue and the baselines' OHPF. Measured (``python -m benchmarks.executive --random 60
   --jitter 4 --jobs 2``, 315 missions with unknown obstacles, against the fields on the same
