@@ -77,6 +77,7 @@ _INFLATE_LINEAR = 5  # inflation steps tried in order before bisection (:func:`i
 _DISTANCE_WEIGHTS = True  # fit distances to first order (:func:`_distance_weights`), not radial errors
 _REWEIGHT_TOL = 0.1  # distance weights moving more than this during a solve: solved again with the new ones
 _CONTAIN_DISTANCE = True  # containment and "within inside_tol" by distance (:func:`_outside`), not radial error
+_FITS = 0  # fit_squircle calls in this process (:func:`fit_count`)
 _SOLVER = "lm"  # "lm" (:func:`_lm`) or "scipy" (``least_squares``, trust region reflective)
 
 
@@ -574,6 +575,14 @@ def _to_squircle(p: np.ndarray) -> Squircle:
                     float(min(max(p[5], 0.0), _S_MAX)))
 
 
+def fit_count() -> int:
+    """How many times :func:`fit_squircle` has run in this process (it also runs inside
+    :func:`fit_cluster`): the unit of fitting work, about 1 ms each on the drives (an
+    :class:`~perception.map.ObstacleMap` update reports its own as ``MapUpdate.fits``).
+    Deterministic where a measured time is not."""
+    return _FITS
+
+
 def fit_squircle(points, *, views=None, free=None, config: PerceptionConfig | None = None, init=None) -> Fit:
     """Fit one squircle to a cluster (module docstring), conservatively completed.
 
@@ -601,6 +610,8 @@ def fit_squircle(points, *, views=None, free=None, config: PerceptionConfig | No
     ScanError
         If ``points`` is empty, not ``(N, 2)`` or not finite.
     """
+    global _FITS
+    _FITS += 1
     cfg = config or PerceptionConfig.from_lidar()
     q = _check(points, "points")
     if len(q) == 0:

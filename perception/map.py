@@ -23,7 +23,10 @@ The map starts knowing only the workspace and grows from scans:
    that the last refits could not clear, unless the cluster's returns have grown 1.05 times
    since its last refit, ``_FUTILE_GROWTH``; such a futile refit, and a repair merging two
    estimates, leave the cluster pending; a pending refit after a futile one is skipped while
-   the cluster's returns, nearby free cells and estimates are those of that refit). The
+   the cluster's returns, nearby free cells and estimates are those of that refit). Pending
+   refits run after the others, longest waiting first, while the update has run fewer than
+   ``_PENDING_BUDGET`` squircle fits (:func:`perception.fit.fit_count`); one put off is due
+   at the next update, an overdue one runs regardless. The
    cluster is fitted by
    :func:`perception.fit.fit_cluster` (one squircle or a decomposition), extended through the
    workspace boundary when it touches it (walls on the boundary): its returns within
@@ -73,7 +76,7 @@ from navigation.geometry import Squircle
 from . import _shape_kernel
 from .config import PerceptionConfig
 from .errors import PoseJumpError, ScanError, StampError
-from .fit import fit_cluster, fit_squircle, gauge, inflate, radial_error, rect_error
+from .fit import fit_cluster, fit_count, fit_squircle, gauge, inflate, radial_error, rect_error
 from .ingest import Scan, parse_points, parse_pose, parse_scan
 
 __all__ = ["Estimate", "MapUpdate", "ObstacleMap"]
@@ -90,6 +93,7 @@ _MERGES_PER_UPDATE = 2  # cycle merges one estimate may take part in within one 
 _SKIP_SAME = True  # a pending refit after a futile one waits while the cluster's data is unchanged
 _MAX_BACKOFF = 2  # futile free-space refits double the wait, at most 2 ** _MAX_BACKOFF times
 _FUTILE_GROWTH = 1.05  # ... unless the cluster's returns have grown this many times since (0: off)
+_PENDING_BUDGET = 4  # squircle fits an update may have run before a due pending refit waits (0: off)
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -135,6 +139,10 @@ class MapUpdate:
         Beams or points dropped (non-finite, too short, on the workspace boundary, outside).
     notes : tuple of str
         Logged reasons (trims, repairs, reverts).
+    fits : int
+        Squircle fits the update ran (:func:`perception.fit.fit_count`): its fitting work,
+        about 1 ms each, deterministic where its time is not. The executive defers a re-plan
+        past a heavy update (``ExecutiveConfig.defer_fits``).
     """
 
     stamp: float | None
@@ -144,6 +152,7 @@ class MapUpdate:
     points: int = 0
     trimmed: int = 0
     notes: tuple[str, ...] = ()
+    fits: int = 0
 
     @property
     def changed(self) -> bool:
@@ -284,6 +293,7 @@ class _Cluster:
     pending: bool = False  # contradicted by data while not due: refit when due
     by_points: bool = False  # the pending contradiction includes returns outside its estimates
     futile: int = 0  # refits in a row that left free space deeper than free_tol inside (backoff)
+    deferred: bool = False  # a due pending refit the update's budget put off: due at the next update
     data: tuple = ()  # fingerprint of its returns and nearby free cells at its last refit
     cells: int = 0  # return cells at its last refit
     result: tuple = ()  # the squircles its last refit left (before trims)
@@ -538,6 +548,7 @@ class ObstacleMap:
 
     def _integrate(self, stamp: float, pose, pts: np.ndarray, scan: Scan | None, notes: list, trimmed: int) -> MapUpdate:
         cfg = self.config
+        fits0 = fit_count()  # (MapUpdate.fits)
         # --- trim: the workspace boundary itself, returns inside the robot disc, off-grid points
         beam_of = np.nonzero(scan.hit)[0] if scan is not None else None  # the beam of each return
         keep = np.ones(len(pts), bool)
@@ -621,6 +632,7 @@ class ObstacleMap:
                 self._clusters[lab].pending = True
             self.stats["refit_free"] += len(contra - refit)
         waiting: set[int] = set()  # pending refits after a futile one
+        due: dict[int, bool] = {}  # pending refits due now -> overdue (waited _REFIT_LATEST times)
         if len(new_cells) or len(new_free):  # (a repeated scan brings nothing new: no refit)
             # pending refits (returns still inside the inflated estimates, free space inside an
             # estimate: accuracy, not safety) are at most one per cluster every
@@ -638,15 +650,26 @@ class ObstacleMap:
                     # for the decomposition, no backoff (random73 noise-free: refitted futile
                     # at 234 returns, 273 at the drive's end, whose decomposition is clean)
                     wait = 1
-                if cl.pending and age >= _REFIT_EVERY * wait and (busy or age >= _REFIT_LATEST * wait):
-                    if cl.futile and lab not in refit:
+                if (cl.pending and lab not in refit and age >= _REFIT_EVERY * wait
+                        and (busy or cl.deferred or age >= _REFIT_LATEST * wait)):
+                    if cl.futile:
                         waiting.add(lab)  # refitted only if its data changed since (_refit)
-                    refit.add(lab)
+                    due[lab] = age >= _REFIT_LATEST * wait
         proposed = dict(self._est)
         changed: set[int] = set()
         removed: set[int] = set()
-        for lab in sorted(refit):
+        # the refits the data asks for first, then the due pending ones, longest waiting first,
+        # while the update has run fewer than ``_PENDING_BUDGET`` squircle fits (an overdue one
+        # regardless); one put off is due at the next update (the work of a heavy update is
+        # spread over the next, lighter ones)
+        later = sorted(due, key=lambda lab: (self._clusters[lab].last_fit, lab))
+        for lab in sorted(refit) + later:
             cl = self._clusters.get(lab)
+            if lab in due and cl is not None:
+                cl.deferred = bool(_PENDING_BUDGET and not due[lab] and fit_count() - fits0 >= _PENDING_BUDGET)
+                if cl.deferred:
+                    self.stats["refit_put_off"] += 1
+                    continue
             if cl is not None and cl.failed_at:
                 n = len(self._label_cells(lab)[0])
                 if n < 1.2 * cl.failed_at + 5:
@@ -660,7 +683,8 @@ class ObstacleMap:
         if pose is not None and scan is not None:
             self.last_pose = tuple(pose)
         self.scans += 1
-        return MapUpdate(stamp, update[0], update[1], update[2], len(pts_k), trimmed + n_trim, tuple(notes))
+        return MapUpdate(stamp, update[0], update[1], update[2], len(pts_k), trimmed + n_trim, tuple(notes),
+                         fit_count() - fits0)
 
     def _mark_free(self, scan: Scan) -> np.ndarray:
         """Mark the cells the beams crossed as free; return the centres of newly free cells."""
@@ -956,7 +980,7 @@ class ObstacleMap:
         cl.ids = new_ids
         cl.failed_at = 0
         cl.last_fit = self.scans
-        cl.by_points = False
+        cl.by_points = cl.deferred = False
         ids = [i for i in new_ids if i in proposed]
         deep = bool(len(free) and ids) and any(
             float(radial_error(proposed[i].squircle, free).min()) < -self.config.free_tol for i in ids)

@@ -745,3 +745,44 @@ def test_a_futile_cluster_whose_returns_grew_is_refitted_without_backoff(monkeyp
         assert min(sc.iou) >= iou_floor(0.0), sc.iou  # 0.952
     else:
         assert min(sc.iou) < iou_floor(0.0), sc.iou  # 0.756 (a change elsewhere may fix it too)
+
+
+@pytest.mark.parametrize("budget", [1, 0])
+def test_pending_refits_wait_for_the_budget_then_run_at_the_next_update(monkeypatch, budget):
+    """``_PENDING_BUDGET``: due pending refits run after the others, longest waiting first,
+    while the update has run fewer than the budget's squircle fits; one put off stays pending
+    and is due at the next update (quiet or not). ``0``: no budget, every due one runs.
+    ``MapUpdate.fits`` is the update's count of :func:`perception.fit.fit_count`."""
+    import perception.map as pm
+    from perception.fit import fit_count
+
+    monkeypatch.setattr(pm, "_PENDING_BUDGET", budget)
+    world, sim, omap, poses = _simple_after_40_scans()
+    labs = sorted({e.cluster for e in omap.estimates.values()})
+    assert len(labs) >= 2
+    a, b = labs[:2]
+    for lab, age in ((a, 30), (b, 10)):  # due (deferred: on any update), not overdue; a waited longer
+        cl = omap._clusters[lab]
+        cl.pending, cl.deferred, cl.by_points, cl.futile = True, True, True, 0
+        cl.last_fit = omap.scans - age
+    n0 = fit_count()
+    pose = poses[40]
+    msg = sim.scan_message(stamp=4.0, ranges=sim.true_ranges(tuple(pose)))
+    upd = omap.update_scan(msg, {"stamp": 4.0, "x": pose[0], "y": pose[1], "theta": pose[2]})
+    assert upd.fits == fit_count() - n0 and upd.fits >= 1
+    A, B = omap._clusters[a], omap._clusters[b]
+    if not budget:
+        assert A.last_fit == B.last_fit == omap.scans - 1 and not A.deferred and not B.deferred
+        return
+    assert omap.stats["refit_put_off"] >= 1
+    # the one waiting longer goes first: put off only if the budget was spent before it
+    assert B.deferred and B.pending and B.last_fit < omap.scans - 1
+    assert A.deferred or A.last_fit == omap.scans - 1
+    for k in range(41, 46):  # a put-off refit runs once an update has the budget left
+        pose = poses[k]
+        msg = sim.scan_message(stamp=0.1 * k, ranges=sim.true_ranges(tuple(pose)))
+        omap.update_scan(msg, {"stamp": 0.1 * k, "x": pose[0], "y": pose[1], "theta": pose[2]})
+        if not (A.deferred or B.deferred):
+            break
+    assert not A.deferred and not B.deferred
+    assert A.last_fit >= omap.scans - 6 and B.last_fit >= omap.scans - 6
