@@ -409,6 +409,21 @@ class Tracker:
         if math.isfinite(t) and math.isfinite(v) and math.isfinite(omega):
             self._sent = (t, v, omega)
 
+    def brake(self, t: float) -> tuple[float, float]:
+        """``(v, omega)`` at time ``t`` towards rest as fast as the rate limit allows: the last
+        command (:meth:`command` or :meth:`applied`) with ``|v|`` lowered by ``accel_max dt``
+        and ``|omega|`` by ``alpha_max dt``, not below 0; ``(0, 0)`` without the rate limit or
+        a recent command. No safety limit is applied: the caller checks the motion (the
+        executive's motion guard). Not recorded: report what is sent with :meth:`applied`."""
+        t = float(t)
+        if not math.isfinite(t):
+            raise NavigationError(f"t must be finite, got {t!r}")
+        v, w, dt = self._previous(t)
+        cfg = self.config
+        v = math.copysign(max(0.0, abs(v) - cfg.accel_max * dt), v) if cfg.accel_max > 0 else 0.0
+        w = math.copysign(max(0.0, abs(w) - cfg.alpha_max * dt), w) if cfg.alpha_max > 0 else 0.0
+        return v, w
+
     def _previous(self, t: float) -> tuple[float, float, float]:
         s = self._sent
         if s is not None and 0.0 <= t - s[0] <= self.max_gap:

@@ -276,6 +276,30 @@ def test_rate_limited_tracker_starts_from_rest_follows_what_was_sent_and_restart
     assert tr.command(0.1, pose, field) == track_waypoints(pose, field, None, plain)
 
 
+def test_brake_lowers_the_last_command_by_the_rate_limit_towards_rest():
+    """:meth:`Tracker.brake`: ``|v|`` lowered by ``accel_max dt`` and ``|omega|`` by ``alpha_max dt``
+    from the last command sent, never past 0; ``(0, 0)`` from rest, after a gap or without the
+    rate limit; a non-finite time is refused."""
+    cfg = ControllerConfig(v_max=0.5, omega_max=1.5, **RATE_LIMITED)  # 1 m/s^2, 6 rad/s^2
+    tr = Tracker(cfg, crawl=None)
+    assert tr.brake(0.0) == (0.0, 0.0)  # no command yet: at rest
+    tr.applied(1.0, 0.45, -1.2)
+    v, w = tr.brake(1.1)
+    assert v == pytest.approx(0.35) and w == pytest.approx(-0.6)
+    v, w = tr.brake(1.25)  # 0.25 s: omega reaches 0, v does not
+    assert v == pytest.approx(0.2) and w == 0.0
+    tr.applied(2.0, 0.05, 0.3)
+    assert tr.brake(2.1) == (0.0, 0.0)  # never past rest
+    tr.applied(3.0, -0.3, 0.0)
+    assert tr.brake(3.1) == pytest.approx((-0.2, 0.0))  # towards rest from either side
+    assert tr.brake(4.0) == (0.0, 0.0)  # after more than max_gap: from rest
+    plain = Tracker(ControllerConfig(v_max=0.5, omega_max=1.5, **UNLIMITED), crawl=None)
+    plain.applied(0.0, 0.5, 1.5)
+    assert plain.brake(0.1) == (0.0, 0.0)
+    with pytest.raises(NavigationError, match="finite"):
+        tr.brake(float("nan"))
+
+
 def test_the_engaged_stand_off_does_not_hold_a_robot_in_the_escape_band():
     """random13 start 8 of the slow closed-loop test: the engaged stand-off's wall flow, in the
     notch of two grown obstacles, points along the wall the robot is 25 micrometres from, where
