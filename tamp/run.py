@@ -145,6 +145,7 @@ def run_mission(world, task: str | None = None, known: bool = False, seed: int =
         s: the same figures without the time other processes take on a loaded machine),
         ``bad_commands`` (non-finite or out-of-limit commands: must be 0), ``min_clearance``,
         ``map_changes``, ``trees_planned``, ``guard_stops`` (ticks the motion guard slowed),
+        ``deferred_plans`` (re-plans that waited a tick after a heavy map update),
         ``gap_searches`` (transitions no roadmap connected: passages searched), ``looks`` (look
         points the robot went to before it could be blocked), ``obstacles`` (estimates at the
         end), ``messages``.
@@ -228,6 +229,7 @@ def run_mission(world, task: str | None = None, known: bool = False, seed: int =
         "map_changes": ex.map_changes,
         "trees_planned": ex.trees_planned,
         "guard_stops": ex.guard_stops,
+        "deferred_plans": ex.deferred_plans,
         "gap_searches": ex.gap_searches,
         "looks": ex.looks,
         "obstacles": len(ex.obstacles),

@@ -243,7 +243,7 @@ class _ScriptedMap:
         self._est = {}
         self._next = None  # MapUpdate delivered by the next update_scan
 
-    def script(self, added=(), removed=()):
+    def script(self, added=(), removed=(), fits=0):
         from perception.fit import inflate
         from perception.map import Estimate, MapUpdate
 
@@ -251,7 +251,7 @@ class _ScriptedMap:
             self._est[i] = Estimate(i, sq, inflate(sq, self.radius), cluster=i)
         for i in removed:
             self._est.pop(i)
-        self._next = MapUpdate(None, added=tuple(i for i, _ in added), removed=tuple(removed))
+        self._next = MapUpdate(None, added=tuple(i for i, _ in added), removed=tuple(removed), fits=fits)
 
     def update_scan(self, scan, pose, now=None):
         from perception.map import MapUpdate
@@ -294,6 +294,46 @@ def test_blocked_executive_resumes_when_a_map_update_reopens_the_way():
     _drive(ex, sim, 600)
     assert ex.state is ExecutiveState.DONE and "b" in ex.visited, ex.messages
     assert not sim.metrics.collisions
+
+
+@pytest.mark.parametrize("fits, defer", [(9, 5), (4, 5), (9, 0)])
+def test_a_replan_after_a_heavy_map_update_waits_one_tick_and_the_robot_brakes(fits, defer):
+    """``defer_fits`` (module doc, "Deferred re-plans"): a map update of at least ``defer_fits``
+    squircle fits that asks for a re-plan (an estimate walls ``b`` off) leaves the re-plan to
+    the next tick, whose command is the rate limit's brake; the next tick re-plans even after
+    another heavy update (one tick at most). A lighter update, or ``defer_fits = 0``, re-plans
+    at once."""
+    from navigation.geometry import Squircle
+
+    world = _open_corridor()
+    ex = Executive(world, "F b", known=True, config=ExecutiveConfig(look_tries=0, defer_fits=defer))
+    ex.omap = omap = _ScriptedMap(world)
+    sim = Simulator(world, seed=0)
+    before = _drive(ex, sim, 20, stop=lambda ex: False)
+    assert ex.state is ExecutiveState.EXECUTING and before.v > 0.15
+    omap.script(added=[(7, Squircle((2.6, 0.45), 0.2, 0.9, 0.0, 0.99))], fits=fits)
+    res = ex.tick(sim.pose_message(), scan=sim.scan_message(), now=sim.time)
+    waits = defer and fits >= defer
+    assert res.replanned is not waits and ex.deferred_plans == int(waits)
+    if not waits:
+        assert ex.state is ExecutiveState.BLOCKED and (res.v, res.omega) == (0.0, 0.0)
+        return
+    # the brake: v lowered by accel_max dt (1 m/s^2, 0.1 s), omega towards 0 by alpha_max dt
+    dv, dw = ex.control.accel_max * 0.1, ex.control.alpha_max * 0.1
+    assert ex.state is ExecutiveState.EXECUTING and dv > 0
+    assert res.v == pytest.approx(max(0.0, before.v - dv)) and res.v < before.v
+    assert res.omega == pytest.approx(math.copysign(max(0.0, abs(before.omega) - dw), before.omega))
+    sim.step((res.v, res.omega))
+    omap.script(added=[(8, Squircle((1.0, 1.3), 0.1, 0.1, 0.0, 0.99))], fits=fits)  # heavy again
+    res = ex.tick(sim.pose_message(), scan=sim.scan_message(), now=sim.time)
+    assert res.replanned and ex.deferred_plans == 1
+    assert ex.state is ExecutiveState.BLOCKED and ex.unreachable == ("b",), ex.messages
+
+
+def test_defer_fits_is_validated():
+    for bad in (-1, 1.5, True, "5"):
+        with pytest.raises(TampError, match="defer_fits"):
+            ExecutiveConfig(defer_fits=bad)
 
 
 def test_an_unreachable_region_is_looked_at_from_up_to_look_tries_points_then_blocked():
