@@ -49,8 +49,10 @@ is timed with the memos (forest results, LTL translation) that the missions befo
 
 ``--sweep A:B`` runs instead a robustness sweep over the random worlds of seeds ``A .. B-1``
 (seeds the benchmark and the tests were not developed on; nominal start poses, ``--jobs N``
-processes, not timed) and reports the missions that did not complete or touched an obstacle,
-with their state and message, and the distance ratios; results ``<out>/executive_sweep.json``
+processes) and reports the missions that did not complete or touched an obstacle, with their
+state and message, the distance ratios, and each mission's tick CPU p95 and longest re-plan
+(CPU) against the targets (one run each, beside the other processes: not the main table's
+median of three quiet runs); results ``<out>/executive_sweep.json``
 and ``.md``. With ``--patrol`` the missions are recurrent instead (``G F`` every region; a
 mission completes after one round of its cycle, as :func:`tamp.run.run_mission` counts), and a
 mission that did not visit every region at least twice counts as failed too.
@@ -151,7 +153,8 @@ def _untimed_run(job) -> dict:
     r = run_mission(world, task, max_time=max_time, config=config)
     tour, ratio = _tour_ratio(world, r)
     out = {"world": name, "k": k, "tour": tour, "ratio": ratio, **{key: r[key] for key in (
-        "completed", "collisions", "distance", "execution_time", "state", "message", "visited")}}
+        "completed", "collisions", "distance", "execution_time", "state", "message", "visited", "tick_cpu_p95",
+        "max_replan_cpu", "deferred_plans")}}
     if patrol:  # went round: every region at least twice (the prefix and one round of the cycle)
         out["every_region_twice"] = all(r["visited"].count(n) >= 2 for n in world.regions)
     return out
@@ -215,6 +218,16 @@ def render_sweep(result: dict) -> str:
              f"total time {sum(r['execution_time'] for r in rows):.0f} s."
              + (f" Every region visited at least twice: {sum(r['every_region_twice'] for r in rows)}/{len(rows)}."
                 if patrol else "")]
+    ticks = np.array([r["tick_cpu_p95"] for r in rows if "tick_cpu_p95" in r])
+    if len(ticks):
+        # one run each, two processes at a time: a loaded machine's outliers are not repeated
+        replans = np.array([r["max_replan_cpu"] for r in rows])
+        lines.append(f"Tick CPU p95 (one run each): median {np.median(ticks) * 1e3:.1f} ms, max "
+                     f"{ticks.max() * 1e3:.1f} ms; within {TARGETS['tick_p95'] * 1e3:.0f} ms: "
+                     f"{int((ticks <= TARGETS['tick_p95']).sum())}/{len(ticks)}. Longest re-plan (CPU): max "
+                     f"{replans.max() * 1e3:.0f} ms; within {TARGETS['replan'] * 1e3:.0f} ms: "
+                     f"{int((replans <= TARGETS['replan']).sum())}/{len(replans)}. Re-plans deferred a tick: "
+                     f"{sum(r.get('deferred_plans', 0) for r in rows)}.")
     if len(ratios):
         lines.append(f"Distance / full-knowledge tour: median {np.median(ratios):.3f}, p90 "
                      f"{np.percentile(ratios, 90):.3f}, max {ratios.max():.2f}; within 1.25 x: "

@@ -156,6 +156,8 @@ def test_executive_benchmark_sweep_reports_every_world_and_refuses_a_bad_range(t
     assert all(r["completed"] and r["collisions"] == 0 and r["ratio"] > 0.9 for r in data["rows"])
     table = (out / "executive_sweep.md").read_text()
     assert "--sweep 3:5" in table and "Completed 2/2, collisions 0" in table
+    assert all(r["tick_cpu_p95"] > 0 and r["max_replan_cpu"] >= 0 and r["deferred_plans"] >= 0 for r in data["rows"])
+    assert "Tick CPU p95 (one run each)" in table and "Re-plans deferred a tick:" in table
     assert capsys.readouterr().out.strip() == table.strip()
     for bad in ("5:3", "x:4", "4"):
         with pytest.raises(SystemExit):
