@@ -187,6 +187,18 @@ Choices where the paper is vague, and why
   p95 from 21.3 to 16.0 ms. On the benchmark's 63 missions (``--random 60``) the tick target
   was met on 63 instead of 60, for 17 s more mission time in 1404 s (1.2 %) at the same
   distance.
+* **Legs from a region** (not in the paper; :data:`VIA_CENTRE_SLACK`, 0.2 m; forty-fourth
+  session). The navigation map's cost of a transition is the tree between the two regions'
+  centres, but the robot leaves a region from where it entered the disc, up to its radius
+  from the centre, and a tree from there can leave by another way: the start may lie in an
+  obstacle's buffer zone. On sweep world ``random698`` the tree from ``r4``'s centre to
+  ``r2`` ran 2.8 m south-west, the tree from the robot 4.5 m east through ``r3``; entering
+  ``r3`` re-planned, and the plan went back through ``r4`` for the cheap transition, for the
+  rest of the 300 s. The leg from a region now runs through its centre and then along that
+  transition's tree when the tree from the robot is longer by more than 0.2 m (or missing):
+  the way to the centre lies inside the region disc, which perception keeps clear of the
+  inflated estimates (FORMATS.md's region rule for the known obstacles), and the robot
+  drives what the plan paid for.
 * **Buffer fallback.** With the paper's 0.15 m buffer, passages narrower than
   ``2 (r + 0.15)`` are closed for the trees. A transition without a tree at ``buffer`` is
   retried at ``fallback_buffer`` before it is declared blocked. A transition whose tree at
@@ -393,6 +405,9 @@ class RegionError(InvalidRequestError):
 
 #: a return within this radial error (m) of an estimate is covered by it (the motion guard)
 _GUARD_COVER_TOL = 0.002
+#: a leg from a region runs through its centre when the tree from the robot is longer than the
+#: centre's by more than this (m; module doc, "Legs from a region")
+VIA_CENTRE_SLACK = 0.2
 GUARD_HOLD_TICKS = 10  #: ticks the motion guard holds the robot before it slides around the return
 GUARD_SLIDE_TIME = 2.0  #: seconds of a slide (Executive._slid)
 GUARD_SLIDE_SPEED = 0.1  #: m/s at most during a slide
@@ -1644,6 +1659,11 @@ class Executive:
         res, road = self._start_pair.get(target), self._start_road.get(target)
         if res is None or isinstance(res, Exception) or self._at_region is not None:
             res, road = self._tree_road(p, goal, keep=self._leg_keep(target), probe=True)
+        via = self._via_centre(p, target, res)
+        if via is not None:
+            self._leg_road = None
+            self._drive_waypoints(target, via)
+            return
         self._leg_road = (target, road) if road is not None else None
         if isinstance(res, NoTreePathError) and res.reason is TreeFailure.START_BLOCKED:
             # the robot is in the buffer zone of an estimate that the terminal rule cannot
@@ -1657,9 +1677,35 @@ class Executive:
             return
         self._go(target, _pass_through_headings(wps))
 
+    def _via_centre(self, p, target, res):
+        """At a region, the leg through its centre: the robot's position, then the waypoints of
+        the tree of the transition to ``target`` (the tree the plan's cost comes from, from
+        the region's centre), when ``res``, the tree from the robot's position, is missing or
+        longer than that by more than :data:`VIA_CENTRE_SLACK`; else ``None`` (module doc,
+        "Legs from a region"). The way to the centre runs inside the region disc, which
+        perception keeps clear of the inflated estimates."""
+        here = self._at_region
+        if here is None or here == target:
+            return None
+        key = (here, target) if here < target else (target, here)
+        pair = self._pair.get(key)
+        if pair is None or isinstance(pair, Exception):
+            return None
+        c = self.world.regions[here].center
+        via = math.dist(p[:2], c) + float(pair.translations.sum())
+        if not isinstance(res, Exception) and float(res.translations.sum()) <= via + VIA_CENTRE_SLACK:
+            return None
+        wps = [tuple(float(x) for x in w) for w in pair.waypoints]
+        if key[0] != here:  # the tree runs from the other region: driven backwards
+            wps = [(x, y, wrap_angle(th + math.pi)) for x, y, th in reversed(wps)]
+        return (tuple(float(x) for x in p),) + tuple(wps)
+
     def _drive(self, p, target, tree) -> None:
         """The leg along ``tree``'s waypoints (shortcut, subdivided, centred), towards ``target``."""
-        wps = tuple(tuple(float(x) for x in w) for w in tree.waypoints)
+        self._drive_waypoints(target, tuple(tuple(float(x) for x in w) for w in tree.waypoints))
+
+    def _drive_waypoints(self, target, wps) -> None:
+        """The leg along the waypoints ``wps`` (shortcut, subdivided, centred), towards ``target``."""
         if self.config.shortcut_legs:
             wps = self._shortcut(wps)
         # edges longer than ``max_segment`` get evenly spaced intermediate waypoints (the

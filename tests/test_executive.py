@@ -27,7 +27,7 @@ from navigation.world import World
 from perception import ObstacleMap
 from service.sim import Simulator
 from tamp.executive import Executive, ExecutiveConfig, ExecutiveState, reachable_speed
-from tamp.harmonic_tree import NoTreePathError, plan_tree
+from tamp.harmonic_tree import NoTreePathError, TreeFailure, plan_tree
 from tamp.errors import LtlSyntaxError, TampError, UnknownRegionError
 from tamp.run import main, run_mission
 
@@ -78,6 +78,56 @@ def test_random_world_visit_all_completes_safely(seed):
 @pytest.mark.parametrize("seed", range(60))
 def test_random_world_visit_all_completes_safely_full(seed):
     _check_random(seed)
+
+
+def test_a_leg_from_a_region_runs_through_its_centre_when_the_tree_from_the_robot_is_longer():
+    """Legs from a region (module doc): sweep world ``random698``, where the tree from the
+    robot's position in ``r4`` to ``r2`` ran 4.5 m east through ``r3`` against 2.8 m from
+    ``r4``'s centre; entering ``r3`` re-planned back through ``r4`` and the robot went
+    between the two for 300 s. Through the centre it completes, short of its tour's 1.25 x."""
+    world, task = _random_mission(698)
+    r = run_mission(world, task, max_time=300)
+    _check_run(r)
+    assert set(r["visited"]) == set(world.regions) and r["execution_time"] < 100.0, r["visited"]
+    assert r["distance"] < 9.0
+
+
+def test_via_centre_is_the_robot_then_the_transition_tree_from_the_centre():
+    """``Executive._via_centre``: ``None`` away from a region, without an evaluated tree, or
+    when the tree from the robot is within the slack; else the robot's pose followed by the
+    transition tree's waypoints from this region's centre (reversed, headings turned, when
+    the tree runs from the other region)."""
+    from types import SimpleNamespace
+
+    from tamp.executive import VIA_CENTRE_SLACK
+
+    world, task = _random_mission(0)
+    ex = Executive(world, task, known=True)
+    a, b = sorted(world.regions)[:2]
+    ca, cb = world.regions[a].center, world.regions[b].center
+    mid = ((ca[0] + cb[0]) / 2, (ca[1] + cb[1]) / 2 + 0.3)
+    wps = np.array([(ca[0], ca[1], 0.1), (mid[0], mid[1], 0.2), (cb[0], cb[1], 0.3)])
+    tree = SimpleNamespace(waypoints=wps, translations=np.hypot(*np.diff(wps[:, :2], axis=0).T))
+    length = float(tree.translations.sum())
+    p = (ca[0] + 0.1, ca[1], 0.0)
+    long = SimpleNamespace(translations=np.array([length + 0.1 + VIA_CENTRE_SLACK + 0.05]))
+    short = SimpleNamespace(translations=np.array([length + 0.1 + VIA_CENTRE_SLACK - 0.05]))
+    ex._pair[(a, b)] = tree
+    ex._at_region = None
+    assert ex._via_centre(p, b, long) is None  # not at a region
+    ex._at_region = a
+    assert ex._via_centre(p, b, short) is None
+    via = ex._via_centre(p, b, long)
+    assert via[0] == p and np.allclose(via[1:], wps)
+    none = NoTreePathError(p, wps[-1], TreeFailure.DISCONNECTED)
+    assert np.allclose(ex._via_centre(p, b, none)[1:], wps)  # no tree from the robot
+    ex._at_region = b  # driven backwards from b
+    q = (cb[0], cb[1] - 0.1, 1.0)
+    via = ex._via_centre(q, a, long)
+    assert via[0] == q and np.allclose(np.array(via[1:])[:, :2], wps[::-1, :2])
+    assert np.allclose([math.cos(v[2] - (w + math.pi)) for v, w in zip(via[1:], wps[::-1, 2])], 1.0)
+    del ex._pair[(a, b)]
+    assert ex._via_centre(q, a, long) is None  # no evaluated transition
 
 
 def _noisy(world: World, sigma: float) -> World:
