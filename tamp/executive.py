@@ -183,10 +183,10 @@ Choices where the paper is vague, and why
   waits for the next tick, never two ticks in a row. Meanwhile the robot brakes at the rate
   limit (:meth:`navigation.Tracker.brake`), slowed further by the motion guard against every
   return of the scan (the estimates' returns too, since no field's safety limit is evaluated
-  on that tick). On ``random8`` the replan ticks over 20 ms went from 6 to 0 and the tick CPU
-  p95 from 21.3 to 16.0 ms. On the benchmark's 63 missions (``--random 60``) the tick target
-  was met on 63 instead of 60, for 17 s more mission time in 1404 s (1.2 %) at the same
-  distance.
+  on that tick). On ``random8`` the re-plan ticks over 20 ms went from 6 to 0 and, with
+  perception's budget for pending refits, the tick CPU p95 from 21.3 to 14.7 ms. On the
+  benchmark's 63 missions (``--random 60``) the tick target is met on 63 instead of 60, for
+  1.6 % more mission time at the same distance (docs/executive.md, "Forty-fourth session").
 * **Legs from a region** (not in the paper; :data:`VIA_CENTRE_SLACK`, 0.2 m; forty-fourth
   session). The navigation map's cost of a transition is the tree between the two regions'
   centres, but the robot leaves a region from where it entered the disc, up to its radius
