@@ -217,6 +217,9 @@ class RRTStarExecutive(_FixedPlanMixin, Executive):
     regulated pure pursuit rotates to the path's heading beyond 0.785 rad by default); a robot
     held still for ``stuck_time`` while driving (against an obstacle the map missed) backs up for
     ``backup_time`` at ``backup_speed`` and re-plans (a recovery, as Nav2's behaviour tree runs).
+    Every command passes the robot's rate limit (``ControllerConfig.accel_max``, ``alpha_max``:
+    :meth:`navigation.Tracker.smooth`), as Nav2's velocity smoother does after its controller,
+    so RRT* drives the robot the other methods drive.
     """
 
     budget = 1.0
@@ -280,6 +283,14 @@ class RRTStarExecutive(_FixedPlanMixin, Executive):
         self._dirty = True
 
     def _command(self, p):
+        # every command passes the robot's rate limit (the controller's ``accel_max`` and
+        # ``alpha_max``, which HT and the other baselines drive with), as Nav2's velocity
+        # smoother does after its controller
+        v, w = self._tracker.smooth(self.time, *self._follow(p))
+        self._last_v = v
+        return v, w
+
+    def _follow(self, p):
         # recovery: a robot held still while driving (the simulator stops it at a contact) backs
         # up for ``backup_time`` at ``backup_speed``, then re-plans from where it is
         q = (float(p[0]), float(p[1]))
@@ -287,7 +298,6 @@ class RRTStarExecutive(_FixedPlanMixin, Executive):
         if last is None or math.dist(q, last) > 1e-4 or self._last_v <= 0.0:
             self._still_since = self.time
         if self._backing_until is not None and self.time < self._backing_until - 1e-9:
-            self._last_v = self.backup_speed
             return self.backup_speed, 0.0
         if self._backing_until is not None:
             self._backing_until, self._dirty = None, True  # backed up: re-plan from here
@@ -295,7 +305,6 @@ class RRTStarExecutive(_FixedPlanMixin, Executive):
             self.recoveries += 1
             self._backing_until = self.time + self.backup_time
             self._note(f"held still for {self.stuck_time:g} s while driving: backing up, then re-planning")
-            self._last_v = self.backup_speed
             return self.backup_speed, 0.0
         if self._dirty and self.target is not None:
             t0 = time.perf_counter()
@@ -305,11 +314,8 @@ class RRTStarExecutive(_FixedPlanMixin, Executive):
             self.replan_times.append(dt)
             self.replans += 1
             if self.state is not ExecutiveState.EXECUTING:
-                self._last_v = 0.0
                 return 0.0, 0.0
-        v, w = self._pursue(p)
-        self._last_v = v
-        return v, w
+        return self._pursue(p)
 
     def _pursue(self, p):
         """Pure pursuit along the leg: look-ahead point ``lookahead`` m beyond the projection."""

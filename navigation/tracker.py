@@ -410,19 +410,28 @@ class Tracker:
             self._sent = (t, v, omega)
 
     def brake(self, t: float) -> tuple[float, float]:
-        """``(v, omega)`` at time ``t`` towards rest as fast as the rate limit allows: the last
-        command (:meth:`command` or :meth:`applied`) with ``|v|`` lowered by ``accel_max dt``
-        and ``|omega|`` by ``alpha_max dt``, not below 0; ``(0, 0)`` without the rate limit or
-        a recent command. No safety limit is applied: the caller checks the motion (the
-        executive's motion guard). Not recorded: report what is sent with :meth:`applied`."""
-        t = float(t)
-        if not math.isfinite(t):
-            raise NavigationError(f"t must be finite, got {t!r}")
-        v, w, dt = self._previous(t)
+        """``(v, omega)`` at time ``t`` towards rest as fast as the rate limit allows:
+        :meth:`smooth` towards ``(0, 0)``. No safety limit is applied: the caller checks the
+        motion (the executive's motion guard). Not recorded: report what is sent with
+        :meth:`applied`."""
+        return self.smooth(t, 0.0, 0.0)
+
+    def smooth(self, t: float, v: float, omega: float) -> tuple[float, float]:
+        """The command ``(v, omega)`` wanted at time ``t`` as the rate limit lets it follow the
+        last command (:meth:`command` or :meth:`applied`; rest without a recent one): ``v``
+        moved from the last by at most ``accel_max dt`` and ``omega`` by at most ``alpha_max
+        dt`` (a limit of 0 leaves that component as wanted), as a velocity smoother does.
+        Nothing else is applied (no safety limit, no saturation) and nothing is recorded."""
+        t, v, omega = float(t), float(v), float(omega)
+        if not (math.isfinite(t) and math.isfinite(v) and math.isfinite(omega)):
+            raise NavigationError(f"t, v and omega must be finite, got {t!r}, {v!r}, {omega!r}")
+        pv, pw, dt = self._previous(t)
         cfg = self.config
-        v = math.copysign(max(0.0, abs(v) - cfg.accel_max * dt), v) if cfg.accel_max > 0 else 0.0
-        w = math.copysign(max(0.0, abs(w) - cfg.alpha_max * dt), w) if cfg.alpha_max > 0 else 0.0
-        return v, w
+        if cfg.accel_max > 0:
+            v = min(max(v, pv - cfg.accel_max * dt), pv + cfg.accel_max * dt)
+        if cfg.alpha_max > 0:
+            omega = min(max(omega, pw - cfg.alpha_max * dt), pw + cfg.alpha_max * dt)
+        return v, omega
 
     def _previous(self, t: float) -> tuple[float, float, float]:
         s = self._sent

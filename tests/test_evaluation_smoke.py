@@ -162,3 +162,31 @@ def test_rrt_star_backs_up_and_replans_when_held_still_while_driving(monkeypatch
             assert (v, w) == (ex.backup_speed, 0.0), (t, v, w)
     assert len(calls) == 1 and calls[0] == (pose, "a")  # re-planned once, after the back-up
     assert ex.recoveries == 1 and cmds[-1][1][0] > 0.0
+
+
+def test_rrt_star_follower_sends_commands_within_the_robots_rate_limit(monkeypatch):
+    """The RRT* baseline drives the robot HT drives: its pure pursuit's commands (turns in place
+    included) pass the controller's rate limit (``accel_max``, ``alpha_max``), so it cannot stop
+    or spin up in one period where HT must ramp. OMPL is replaced by the straight line, which is
+    the optimal path in this obstacle-free world, so the test runs without ``ompl``."""
+    import dataclasses
+
+    import navigation
+    from benchmarks import methods
+    from tamp.run import run_mission
+
+    monkeypatch.setattr(methods, "_rrt_star", lambda bounds, start, goal, valid, budget: np.array([start, goal]))
+    world = navigation.load_world("simple")
+    world = dataclasses.replace(world, obstacles=(), known_obstacles=(),
+                                robot=dataclasses.replace(world.robot, start=(0.5, 0.5, 0.0)))
+    r = run_mission(world, "F b & F c", config=methods.BASELINE_CONFIG, record=True,
+                    executive_cls=methods.RRTStarExecutive, max_time=60.0)
+    assert r["completed"] and r["collisions"] == 0 and r["bad_commands"] == 0
+    cmd = np.array(r["commands"])
+    cfg = navigation.ControllerConfig.from_robot(world.robot)
+    dt = 1.0 / world.lidar.rate_hz
+    assert cfg.accel_max > 0 and cfg.alpha_max > 0
+    steps = np.abs(np.diff(np.vstack([[0.0, 0.0], cmd]), axis=0))
+    assert steps[:, 0].max() <= cfg.accel_max * dt + 1e-9
+    assert steps[:, 1].max() <= cfg.alpha_max * dt + 1e-9
+    assert np.any(np.abs(cmd[:, 1]) > 0.5 * cfg.omega_max)  # it turned at c: the limit was exercised

@@ -300,6 +300,31 @@ def test_brake_lowers_the_last_command_by_the_rate_limit_towards_rest():
         tr.brake(float("nan"))
 
 
+def test_smooth_moves_the_last_command_towards_the_wanted_one_by_the_rate_limit():
+    """:meth:`Tracker.smooth` (the evaluation's RRT* follower sends its commands through it): each
+    component moves from the last command sent by at most its limit times ``dt``, reaches the
+    wanted value when that is nearer, starts from rest without a recent command, is unlimited
+    where the limit is 0; :meth:`Tracker.brake` is ``smooth`` towards rest; non-finite input is
+    refused."""
+    cfg = ControllerConfig(v_max=0.5, omega_max=1.5, **RATE_LIMITED)  # 1 m/s^2, 6 rad/s^2
+    tr = Tracker(cfg, crawl=None)
+    assert tr.smooth(0.0, 0.5, 1.5) == pytest.approx((0.1, 0.6))  # from rest, one period
+    tr.applied(1.0, 0.3, 0.2)
+    assert tr.smooth(1.1, 0.5, -1.5) == pytest.approx((0.4, -0.4))
+    assert tr.smooth(1.1, 0.32, 0.1) == pytest.approx((0.32, 0.1))  # within reach: as wanted
+    assert tr.smooth(1.1, -0.1, 0.2) == pytest.approx((0.2, 0.2))  # towards reverse, one step
+    assert tr.smooth(1.2, 0.0, 0.0) == tr.brake(1.2)
+    assert tr.smooth(2.0, 0.5, 1.5) == pytest.approx((0.1, 0.6))  # after more than max_gap
+    no_alpha = Tracker(ControllerConfig(v_max=0.5, omega_max=1.5, accel_max=1.0, alpha_max=0.0), crawl=None)
+    no_alpha.applied(0.0, 0.0, 0.0)
+    assert no_alpha.smooth(0.1, 0.5, -1.5) == pytest.approx((0.1, -1.5))
+    plain = Tracker(ControllerConfig(v_max=0.5, omega_max=1.5, **UNLIMITED), crawl=None)
+    assert plain.smooth(0.1, 0.5, 1.5) == (0.5, 1.5)
+    for bad in ((float("nan"), 0.1, 0.0), (0.1, float("inf"), 0.0), (0.1, 0.0, float("nan"))):
+        with pytest.raises(NavigationError, match="finite"):
+            tr.smooth(*bad)
+
+
 def test_the_engaged_stand_off_does_not_hold_a_robot_in_the_escape_band():
     """random13 start 8 of the slow closed-loop test: the engaged stand-off's wall flow, in the
     notch of two grown obstacles, points along the wall the robot is 25 micrometres from, where
