@@ -50,7 +50,7 @@ import numpy as np
 from benchmarks._common import isolated_map, log, machine_info, write_results
 from benchmarks.methods import ADAPTATION, METHODS, ompl_status, oracle_tour, run_method
 
-__all__ = ["main", "run", "scenario", "render_markdown", "chatter_table", "CHATTER_FLAG", "SHARED"]
+__all__ = ["main", "run", "scenario", "render_markdown", "chatter_table", "targets", "CHATTER_FLAG", "SHARED"]
 
 SHARED = ("office", "cluttered20")
 CHATTER_FLAG = 1.0  #: chatter (flips per metre) above which a run's oscillation is flagged
@@ -236,6 +236,7 @@ def run(names: Sequence[str], methods: Sequence[str], *, quick: bool = False, jo
               "chatter_flag": CHATTER_FLAG, "scenarios": scenarios, "wall": time.perf_counter() - t0,
               "machine": machine_info()}
     result["aggregates"] = aggregate([s for s in scenarios if s["scenario"].startswith("random")], methods)
+    result["targets"] = targets(result)
     if timing:
         result["timing"] = _timing(quick)
     return result
@@ -260,6 +261,97 @@ def aggregate(scenarios: Sequence[dict], methods: Sequence[str]) -> dict:
             row[k] = {"median": float(np.median(vals)), "p90": float(np.percentile(vals, 90))} if vals else None
         agg[m] = row
     return agg
+
+
+# --------------------------------------------------------------------------------- targets
+SCENARIO_LABELS = ("random set",)
+
+
+def targets(result: dict) -> list[dict]:
+    """Issue 8's targets checked on this run: one ``{"target", "met", "detail"}`` per target,
+    ``met`` ``True`` / ``False``, or ``None`` where the run does not measure it (no shared world,
+    HT, OHPF or RRT* not run). Only completed runs have a tour to compare; the shortest other
+    method's contact steps are named beside its distance."""
+    scen = result["scenarios"]
+    shared = [s for s in scen if s["scenario"] in SHARED]
+    rand = [s for s in scen if s["scenario"].startswith("random")]
+
+    def ht(s):
+        r = s["runs"].get("HT")
+        return r if r and "error" not in r else None
+
+    out = []
+    runs = [(s["scenario"], ht(s)) for s in scen if "HT" in s["runs"]]
+    bad = [n for n, r in runs if r is None or not r.get("completed") or r.get("collisions")]
+    out.append({"target": "HT completes every mission with zero collisions",
+                "met": (not bad) if runs else None,
+                "detail": (f"{len(runs) - len(bad)}/{len(runs)} scenarios"
+                           + (f"; not: {', '.join(bad)}" if bad else "")) if runs else "HT not run"})
+    short, within = [], []
+    for s in shared:
+        r = ht(s)
+        if r is None or not r.get("completed"):
+            short.append((s["scenario"], False, "HT did not complete"))
+            within.append((s["scenario"], False, "HT did not complete"))
+            continue
+        others = [(o["distance"], m, o.get("collisions", 0)) for m, o in s["runs"].items()
+                  if m not in ("HT", "oracle") and "error" not in o and o.get("completed")]
+        best = min(others, default=None)
+        if best is None:
+            short.append((s["scenario"], None, f"HT {r['distance']:.2f} m, no other method completed"))
+        else:
+            d, m, c = best
+            short.append((s["scenario"], r["distance"] <= d,
+                          f"HT {r['distance']:.2f} m, shortest other {m} {d:.2f} m"
+                          + (f" ({c} contact steps)" if c else "")))
+        ratio = r.get("ratio")
+        within.append((s["scenario"], None if ratio is None else ratio <= 1.25,
+                       "no oracle" if ratio is None else f"{ratio:.2f} x"))
+
+    def fold(name, items, what):
+        met = [m for _, m, _ in items]
+        return {"target": name,
+                "met": None if not items or None in met else all(met),
+                "detail": "; ".join(f"{n if n in SCENARIO_LABELS else f'`{n}`'} {d}" for n, _, d in items)
+                if items else f"no {what} in this run"}
+
+    out.append(fold("HT's distance the smallest of the non-oracle methods on the shared worlds", short,
+                    "shared world"))
+    out.append(fold("HT within 1.25 x the oracle on the shared worlds", within, "shared world"))
+
+    def planning(other, factor, name):
+        items = []
+        for s in shared:
+            r, o = ht(s), s["runs"].get(other)
+            if r is None or o is None or "error" in o:
+                continue
+            items.append((s["scenario"], r["planning_time"] * factor < o["planning_time"],
+                          f"{r['planning_time']:.3f} s against {o['planning_time']:.3f} s"))
+        pairs = [(ht(s), s["runs"].get(other)) for s in rand]
+        pairs = [(r, o) for r, o in pairs if r is not None and o is not None and "error" not in o]
+        if pairs:
+            a, b = sum(r["planning_time"] for r, _ in pairs), sum(o["planning_time"] for _, o in pairs)
+            k = sum(r["planning_time"] * factor < o["planning_time"] for r, o in pairs)
+            items.append(("random set", a * factor < b,
+                          f"sum over {len(pairs)} worlds {a:.2f} s against {b:.2f} s ({k}/{len(pairs)} worlds each)"))
+        return fold(name, items, f"HT and {other} pair")
+
+    out.append(planning("OHPF", 1.0, "HT's planning time below OHPF's total"))
+    out.append(planning("RRT*", 10.0, "HT's planning time at least 10 x below RRT*'s"))
+    flagged = [n for n, r in runs if r is not None and r.get("chatter", 0.0) > CHATTER_FLAG]
+    out.append({"target": "no oscillation flagged for HT", "met": (not flagged) if runs else None,
+                "detail": (f"{len(flagged)} of {len(runs)} flagged" + (f": {', '.join(flagged)}" if flagged else ""))
+                if runs else "HT not run"})
+    if "RRT*" in result.get("skipped", {}):
+        out[-2]["met"], out[-2]["detail"] = None, f"RRT* skipped: {result['skipped']['RRT*']}"
+    return out
+
+
+def targets_table(result: dict) -> list[str]:
+    status = {True: "met", False: "**not met**", None: "not measured"}
+    return ["## Issue 8 targets (this run)", "",
+            "| target | status | detail |", "|---|---|---|",
+            *(f"| {t['target']} | {status[t['met']]} | {t['detail']} |" for t in result["targets"]), ""]
 
 
 # ---------------------------------------------------------------------------------- report
@@ -331,6 +423,8 @@ def render_markdown(result: dict) -> str:
            "the executed turn rate between consecutive 0.1 s periods per metre; *flagged* above "
            f"{result['chatter_flag']:g}/m. Oracle: shortest full-knowledge tour (see docs/evaluation.md for why a "
            "ratio can fall below 1).", ""]
+    if "targets" in result:
+        out += targets_table(result)
     shared = [s for s in result["scenarios"] if not s["scenario"].startswith("random")]
     rand = [s for s in result["scenarios"] if s["scenario"].startswith("random")]
     if shared:

@@ -45,6 +45,10 @@ def test_quick_run_writes_report_and_ht_completes(tmp_path, capsys):
     report = (out / "evaluation.md").read_text()
     assert "## Random forest worlds (2)" in report and "| HT | 2/2 |" in report and "| HT-fields | 2/2 |" in report
     assert "## Where the chatter comes from" in report
+    goals = {t["target"]: t for t in data["targets"]}  # issue 8's targets, checked on the run
+    assert goals["HT completes every mission with zero collisions"]["met"] is True
+    assert goals["HT within 1.25 x the oracle on the shared worlds"]["met"] is None  # no shared world
+    assert "## Issue 8 targets (this run)" in report and "| HT completes every mission with zero collisions | met |" in report
     for name in ("traj_random0.png", "traj_random1.png", "potential_time.png"):
         img = cv2.imread(str(out / name))
         assert img is not None and img.shape[0] > 100 and img.shape[1] > 100
@@ -62,6 +66,55 @@ def test_ht_fields_is_ht_with_the_papers_execution_and_the_baselines_track_field
     assert METHODS[:2] == ("HT", "HT-fields")
     assert FIELDS_CONFIG.pursuit == 0.0 and BASELINE_CONFIG.pursuit == 0.0 and ExecutiveConfig().pursuit > 0
     assert dataclasses.replace(FIELDS_CONFIG, pursuit=ExecutiveConfig().pursuit) == ExecutiveConfig()
+
+
+def _run(distance, completed=True, collisions=0, planning=0.1, chatter=0.2, ratio=None):
+    r = {"distance": distance, "completed": completed, "collisions": collisions, "planning_time": planning,
+         "chatter": chatter}
+    if ratio is not None:
+        r["ratio"] = ratio
+    return r
+
+
+def test_targets_are_checked_exactly_on_a_made_up_run():
+    """:func:`benchmarks.evaluation.targets` on made-up runs: the shortest *completed* other method
+    decides the distance target (a longer or unfinished one does not), its contact steps are
+    named; the planning targets compare per shared world and the random set's sums; a skipped
+    RRT* leaves its target unmeasured; a flagged or colliding HT run fails its target."""
+    office = {"scenario": "office", "runs": {
+        "HT": _run(13.5, planning=0.2, ratio=1.02), "OHPF": _run(26.0, planning=0.3),
+        "NF": _run(12.0, completed=False, planning=0.03), "RRT*": _run(13.1, collisions=3, planning=27.0),
+        "oracle": {"distance": 13.27, "completed": True}}}
+    clutter = {"scenario": "cluttered20", "runs": {
+        "HT": _run(9.7, planning=0.25, ratio=1.17), "OHPF": _run(19.4, planning=0.7),
+        "RRT*": _run(10.1, planning=1.0), "oracle": {"distance": 8.3, "completed": True}}}
+    rand = [{"scenario": f"random{k}", "runs": {"HT": _run(5.0, planning=p), "OHPF": _run(6.0, planning=q),
+                                                  "RRT*": _run(5.1, planning=6.0)}}
+            for k, (p, q) in enumerate([(0.06, 0.05), (0.10, 0.20)])]
+    result = {"scenarios": [office, clutter, *rand], "skipped": {}}
+    got = {t["target"]: t for t in evaluation.targets(result)}
+    short = got["HT's distance the smallest of the non-oracle methods on the shared worlds"]
+    assert short["met"] is False  # office: RRT* 13.1 m (NF's 12.0 m did not complete)
+    assert short["detail"] == ("`office` HT 13.50 m, shortest other RRT* 13.10 m (3 contact steps); "
+                               "`cluttered20` HT 9.70 m, shortest other RRT* 10.10 m")
+    assert got["HT within 1.25 x the oracle on the shared worlds"]["met"] is True
+    ohpf = got["HT's planning time below OHPF's total"]
+    assert ohpf["met"] is True and "random set sum over 2 worlds 0.16 s against 0.25 s (1/2 worlds each)" in ohpf["detail"]
+    rrt = got["HT's planning time at least 10 x below RRT*'s"]
+    assert rrt["met"] is False and "`cluttered20` 0.250 s against 1.000 s" in rrt["detail"]  # 2.5 s > 1.0 s
+    assert got["HT completes every mission with zero collisions"]["met"] is True
+    assert got["no oscillation flagged for HT"]["met"] is True
+    rand[1]["runs"]["HT"]["chatter"] = 1.5
+    clutter["runs"]["HT"]["collisions"] = 2
+    result["skipped"] = {"RRT*": "no ompl"}
+    got = {t["target"]: t for t in evaluation.targets(result)}
+    assert got["no oscillation flagged for HT"] == {"target": "no oscillation flagged for HT", "met": False,
+                                                     "detail": "1 of 4 flagged: random1"}
+    assert got["HT completes every mission with zero collisions"]["detail"] == "3/4 scenarios; not: cluttered20"
+    assert got["HT's planning time at least 10 x below RRT*'s"] == {
+        "target": "HT's planning time at least 10 x below RRT*'s", "met": None, "detail": "RRT* skipped: no ompl"}
+    assert "| HT's planning time at least 10 x below RRT*'s | not measured | RRT* skipped: no ompl |" in \
+        evaluation.targets_table({"targets": list(got.values())})
 
 
 def test_rrt_star_skipped_with_reason_without_ompl(tmp_path, monkeypatch):
