@@ -169,7 +169,7 @@ def draw_trajectories(world, runs: dict, size: int = 720) -> np.ndarray:
         cv2.putText(img, label, (34, y), cv2.FONT_HERSHEY_SIMPLEX, cv.font, (0, 0, 0), 1, aa)
         y += 18
     if "oracle" in runs and runs["oracle"].get("distance"):
-        cv2.putText(img, f"oracle tour: {runs['oracle']['distance']:.1f} m (not drawn)", (8, y),
+        cv2.putText(img, f"oracle (lower bound): {runs['oracle']['distance']:.1f} m (not drawn)", (8, y),
                     cv2.FONT_HERSHEY_SIMPLEX, cv.font, (0, 0, 0), 1, aa)
     s = tuple(int(v) for v in cv.px(world.robot.start[:2])[0])
     cv2.drawMarker(img, s, (0, 0, 0), cv2.MARKER_STAR, 14, 2, aa)
@@ -421,8 +421,8 @@ def render_markdown(result: dict) -> str:
            "Planning time: wall s (initial synthesis, and total with every re-plan). Execution time: simulated s. "
            "Oscillation: sign changes of the commanded turn rate per metre (`tamp.run`). Chatter: sign flips of "
            "the executed turn rate between consecutive 0.1 s periods per metre; *flagged* above "
-           f"{result['chatter_flag']:g}/m. Oracle: shortest full-knowledge tour (see docs/evaluation.md for why a "
-           "ratio can fall below 1).", ""]
+           f"{result['chatter_flag']:g}/m. Oracle: a lower bound on the travel distance with every obstacle known "
+           "(the shortest tour touching the region discs in order; docs/evaluation.md).", ""]
     if "targets" in result:
         out += targets_table(result)
     shared = [s for s in result["scenarios"] if not s["scenario"].startswith("random")]

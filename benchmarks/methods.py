@@ -25,7 +25,8 @@ between two copies of the surrounding machinery:
            known + estimated obstacles grown by the robot radius and a margin, followed by
            a pure-pursuit path follower; the task plan is the initial one (no adaptation);
            the path is re-planned when a changed obstacle blocks its remainder.
-``oracle`` :func:`oracle_tour`: shortest collision-free tour with full knowledge (distance only).
+``oracle`` :func:`oracle_tour`: a lower bound on the travel distance with full knowledge (the
+           shortest collision-free tour touching the region discs in order; distance only).
 =========  ===========================================================================
 
 :func:`run_method` runs one method on one world through :func:`tamp.run.run_mission` (the
@@ -53,7 +54,7 @@ from tamp.navmap import START
 from tamp.run import run_mission
 
 __all__ = ["METHODS", "ADAPTATION", "OHPFExecutive", "NFExecutive", "RRTStarExecutive", "PlainField",
-           "ompl_status", "run_method", "oracle_tour", "chatter", "chatter_sources"]
+           "ompl_status", "run_method", "oracle_tour", "tour_distances", "chatter", "chatter_sources"]
 
 METHODS = ("HT", "HT-fields", "OHPF", "NF", "RRT*", "oracle")
 #: the paper's "Adaptation" column: does the task plan adapt to what the robot discovers
@@ -423,22 +424,90 @@ def run_method(method: str, world, task=None, *, seed: int = 0, max_time: float 
 
 
 # ------------------------------------------------------------------------------------ oracle
-def oracle_tour(world, sequence, visit_all: bool = False) -> tuple[float | None, list[str]]:
-    """Shortest full-knowledge tour (``benchmarks.executive.full_knowledge_tour``) through the
-    region ``sequence``; with ``visit_all`` the shortest over every order of the distinct
-    regions of ``sequence`` (a lower bound for any method on a visit-all mission). Returns the
-    length (``None`` when no order has a path) and the order used."""
-    from benchmarks.executive import full_knowledge_tour
+ORACLE_OFFSET = 0.005  #: distance (m) of the oracle roadmap's vertices off the robot-grown obstacles
+ORACLE_RING = 64  #: touch points sampled on each region's disc boundary
 
+
+def tour_distances(world, names, *, ring: int = ORACLE_RING, offset: float = ORACLE_OFFSET):
+    """Shortest collision-free path lengths with every obstacle known, between the robot's start
+    and the boundaries of the discs of the regions ``names``: ``(D, rings)`` with ``D`` the
+    distance matrix over the roadmap's vertices from the sources (row 0: the start; then every
+    ring point in ``rings`` order) and ``rings[name]`` the column (= row - 1 + 1) indices of that
+    region's touch points.
+
+    The roadmap (:class:`tamp.roadmap.Roadmap`) keeps no buffer: the obstacles grown by the
+    robot radius, vertices ``offset`` outside them (chords between neighbours missing them),
+    every visible pair joined. A region counts as visited when the robot's centre enters its
+    disc, so a leg may end on the disc's boundary: ``ring`` points on it (a start inside a
+    disc is one of its points). A path a metre long past a rounded corner is at most about
+    ``offset`` times the turn longer than the exact shortest one."""
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import dijkstra
+
+    from tamp.roadmap import Roadmap, RoadmapConfig
+
+    start = np.asarray(world.robot.start[:2], dtype=float)
+    ang = 2.0 * np.pi * np.arange(ring) / ring
+    unit = np.stack([np.cos(ang), np.sin(ang)], axis=1)
+    cand, owner = [start[None, :]], [np.array([-1])]
+    for k, name in enumerate(names):
+        reg = world.regions[name]
+        c = np.asarray(reg.center, dtype=float)
+        cand.append(c + reg.radius * (1.0 - 1e-9) * unit)
+        owner.append(np.full(ring, k))
+        if np.linalg.norm(start - c) <= reg.radius:
+            cand.append(start[None, :])
+            owner.append(np.array([k]))
+    cand, owner = np.concatenate(cand), np.concatenate(owner)
+    config = RoadmapConfig(buffer=0.0, offset=offset)
+    rm = Roadmap.build(world.workspace, world.obstacles, world.robot.radius, config, extra=cand)
+    keep = rm.safe_points(cand)
+    if not keep[0]:
+        raise ValueError(f"the start {tuple(start)} is not in the free space of {world.name}")
+    idx = np.flatnonzero(rm.owner == -1)  # the kept candidates, in order
+    assert len(idx) == int(keep.sum())
+    vid = np.full(len(cand), -1)
+    vid[keep] = idx
+    n = len(rm.points)
+    i, j = rm.pairs[:, 0], rm.pairs[:, 1]
+    w = np.linalg.norm(rm.points[i] - rm.points[j], axis=1)
+    graph = csr_matrix((np.concatenate([w, w]), (np.concatenate([i, j]), np.concatenate([j, i]))), shape=(n, n))
+    rings = {name: vid[(owner == k) & keep] for k, name in enumerate(names)}
+    sources = np.concatenate([[vid[0]], *rings.values()])
+    return dijkstra(graph, directed=False, indices=sources), vid[0], rings
+
+
+def oracle_tour(world, sequence, visit_all: bool = False) -> tuple[float | None, list[str]]:
+    """Lower bound on the travel distance of a run that enters the regions of ``sequence`` in
+    that order, every obstacle known (:func:`tour_distances`): from the start to a point of the
+    first disc, from there to a point of the next, and so on, minimised over the points by
+    dynamic programming over the discs. With ``visit_all`` the smallest over every order of
+    the distinct regions of ``sequence`` (a lower bound for any method on a visit-all
+    mission). Returns the length (``None`` when no order has a path) and the order used.
+
+    Since the forty-fifth session; before, the tour of the executive benchmark
+    (:func:`benchmarks.executive.full_knowledge_tour`: from region centre to region centre,
+    roadmap vertices 5 cm off the grown obstacles), which runs could undercut."""
     seq = list(sequence)
     orders = [seq]
-    if visit_all:
-        distinct = list(dict.fromkeys(seq))
-        if len(distinct) <= 6:
-            orders = [list(o) for o in itertools.permutations(distinct)]
+    distinct = list(dict.fromkeys(seq))
+    if visit_all and len(distinct) <= 6:
+        orders = [list(o) for o in itertools.permutations(distinct)]
+    if not seq:
+        return 0.0, seq
+    D, s, rings = tour_distances(world, distinct)
+    row = {int(v): k for k, v in enumerate(np.concatenate([[s], *rings.values()]))}
     best, best_order = None, seq
     for order in orders:
-        d = full_knowledge_tour(world, order)
-        if d is not None and (best is None or d < best):
+        cost, at = np.zeros(1), np.array([s])
+        for name in order:
+            to = rings[name]
+            if not len(to):
+                cost = np.zeros(0)
+                break
+            legs = D[[row[int(a)] for a in at]][:, to]
+            cost, at = np.min(cost[:, None] + legs, axis=0), to
+        d = float(cost.min()) if len(cost) else math.inf
+        if math.isfinite(d) and (best is None or d < best):
             best, best_order = d, order
     return best, best_order

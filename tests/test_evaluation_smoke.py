@@ -30,6 +30,8 @@ def test_quick_run_writes_report_and_ht_completes(tmp_path, capsys):
         fields = s["runs"]["HT-fields"]  # the paper's execution of the same system
         assert fields["completed"] and fields["collisions"] == 0 and fields["bad_commands"] == 0
         assert s["runs"]["oracle"]["distance"] > 0 and ht["ratio"] > 0
+        for m in ("HT", "HT-fields"):  # the oracle is a lower bound on every completed run
+            assert s["runs"][m]["distance"] >= s["runs"]["oracle"]["distance"]
         assert "error" not in s["runs"]["NF"], s["runs"]["NF"]["error"]  # a baseline that raised
         assert "trajectory" not in ht  # trajectories go to the figures, not the JSON
         assert "waypoints" not in ht and "replanned" not in ht
