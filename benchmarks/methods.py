@@ -429,11 +429,11 @@ ORACLE_RING = 64  #: touch points sampled on each region's disc boundary
 
 
 def tour_distances(world, names, *, ring: int = ORACLE_RING, offset: float = ORACLE_OFFSET):
-    """Shortest collision-free path lengths with every obstacle known, between the robot's start
-    and the boundaries of the discs of the regions ``names``: ``(D, rings)`` with ``D`` the
-    distance matrix over the roadmap's vertices from the sources (row 0: the start; then every
-    ring point in ``rings`` order) and ``rings[name]`` the column (= row - 1 + 1) indices of that
-    region's touch points.
+    """Shortest collision-free path lengths with every obstacle known, from the robot's start and
+    from points on the boundaries of the discs of the regions ``names``: ``(D, s, rings)``.
+    ``rings[name]`` are the roadmap vertex indices of that region's touch points, ``s`` the
+    start's; ``D`` has a row per source, the start first and then every touch point in
+    ``rings`` order, and a column per roadmap vertex (``inf`` where unreachable).
 
     The roadmap (:class:`tamp.roadmap.Roadmap`) keeps no buffer: the obstacles grown by the
     robot radius, vertices ``offset`` outside them (chords between neighbours missing them),
@@ -465,7 +465,8 @@ def tour_distances(world, names, *, ring: int = ORACLE_RING, offset: float = ORA
     if not keep[0]:
         raise ValueError(f"the start {tuple(start)} is not in the free space of {world.name}")
     idx = np.flatnonzero(rm.owner == -1)  # the kept candidates, in order
-    assert len(idx) == int(keep.sum())
+    if len(idx) != int(keep.sum()):
+        raise RuntimeError("the oracle's roadmap kept other touch points than its free-space test")
     vid = np.full(len(cand), -1)
     vid[keep] = idx
     n = len(rm.points)
