@@ -264,7 +264,7 @@ def aggregate(scenarios: Sequence[dict], methods: Sequence[str]) -> dict:
 
 
 # --------------------------------------------------------------------------------- targets
-SCENARIO_LABELS = ("random set",)
+_SET_LABELS = ("random set",)  # target details that name a set of scenarios, not one
 
 
 def targets(result: dict) -> list[dict]:
@@ -312,7 +312,7 @@ def targets(result: dict) -> list[dict]:
         met = [m for _, m, _ in items]
         return {"target": name,
                 "met": None if not items or None in met else all(met),
-                "detail": "; ".join(f"{n if n in SCENARIO_LABELS else f'`{n}`'} {d}" for n, _, d in items)
+                "detail": "; ".join(f"{n if n in _SET_LABELS else f'`{n}`'} {d}" for n, _, d in items)
                 if items else f"no {what} in this run"}
 
     out.append(fold("HT's distance the smallest of the non-oracle methods on the shared worlds", short,
@@ -320,6 +320,9 @@ def targets(result: dict) -> list[dict]:
     out.append(fold("HT within 1.25 x the oracle on the shared worlds", within, "shared world"))
 
     def planning(other, factor, name):
+        why = result.get("skipped", {}).get(other)
+        if why is not None:
+            return {"target": name, "met": None, "detail": f"{other} skipped: {why}"}
         items = []
         for s in shared:
             r, o = ht(s), s["runs"].get(other)
@@ -342,8 +345,6 @@ def targets(result: dict) -> list[dict]:
     out.append({"target": "no oscillation flagged for HT", "met": (not flagged) if runs else None,
                 "detail": (f"{len(flagged)} of {len(runs)} flagged" + (f": {', '.join(flagged)}" if flagged else ""))
                 if runs else "HT not run"})
-    if "RRT*" in result.get("skipped", {}):
-        out[-2]["met"], out[-2]["detail"] = None, f"RRT* skipped: {result['skipped']['RRT*']}"
     return out
 
 
