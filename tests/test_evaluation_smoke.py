@@ -224,16 +224,13 @@ def test_rrt_star_follower_sends_commands_within_the_robots_rate_limit(monkeypat
     included) pass the controller's rate limit (``accel_max``, ``alpha_max``), so it cannot stop
     or spin up in one period where HT must ramp. OMPL is replaced by the straight line, which is
     the optimal path in this obstacle-free world, so the test runs without ``ompl``."""
-    import dataclasses
-
     import navigation
     from benchmarks import methods
     from tamp.run import run_mission
+    from tests.worldgen import empty_world
 
     monkeypatch.setattr(methods, "_rrt_star", lambda bounds, start, goal, valid, budget: np.array([start, goal]))
-    world = navigation.load_world("simple")
-    world = dataclasses.replace(world, obstacles=(), known_obstacles=(),
-                                robot=dataclasses.replace(world.robot, start=(0.5, 0.5, 0.0)))
+    world = empty_world("simple", (0.5, 0.5))
     r = run_mission(world, "F b & F c", config=methods.BASELINE_CONFIG, record=True,
                     executive_cls=methods.RRTStarExecutive, max_time=60.0)
     assert r["completed"] and r["collisions"] == 0 and r["bad_commands"] == 0

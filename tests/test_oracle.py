@@ -4,28 +4,21 @@ never above the executive benchmark's centre-to-centre tour, and below every com
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import numpy as np
 import pytest
 
-import navigation
 from benchmarks.executive import _world, full_knowledge_tour
 from benchmarks.methods import oracle_tour
-
-
-def _empty(start):
-    w = navigation.load_world("simple")
-    return dataclasses.replace(w, obstacles=(), known_obstacles=(),
-                               robot=dataclasses.replace(w.robot, start=(*start, 0.0)))
+from tests.worldgen import empty_world
 
 
 def test_oracle_is_the_continuous_optimum_in_an_empty_world():
     """``simple`` without obstacles: to one disc the straight line minus its radius; through two
     discs the best touch point on the first, found by brute force over 20000 points of its
     circle; every order tried with ``visit_all``; a start inside a disc visits it at no cost."""
-    w = _empty((1.0, 2.0))
+    w = empty_world("simple", (1.0, 2.0))
     s = np.array([1.0, 2.0])
     a, b, c = (w.regions[n] for n in ("a", "b", "c"))
     d, order = oracle_tour(w, ["b"])
@@ -42,7 +35,7 @@ def test_oracle_is_the_continuous_optimum_in_an_empty_world():
     assert d_all == pytest.approx(min(oracle_tour(w, list(o))[0] for o in
                                       (("a", "b", "c"), ("a", "c", "b"), ("b", "a", "c"), ("b", "c", "a"),
                                        ("c", "a", "b"), ("c", "b", "a"))), abs=1e-12)
-    inside = _empty(tuple(np.asarray(a.center) + [0.05, 0.0]))
+    inside = empty_world("simple", tuple(np.asarray(a.center) + [0.05, 0.0]))
     assert oracle_tour(inside, ["a"])[0] == 0.0
     assert oracle_tour(inside, ["a", "c"])[0] == pytest.approx(oracle_tour(inside, ["c"])[0], abs=1e-9)
 

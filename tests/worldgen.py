@@ -17,7 +17,7 @@ the private, vectorised exact pair distance of :mod:`navigation.forest`), so tha
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -26,7 +26,7 @@ from navigation.forest import _SAMPLES, _pair_distance
 from navigation.forest import _Body as _ForestBody
 from navigation.geometry import Squircle
 from scipy.spatial import cKDTree
-from navigation.world import LidarSpec, Region, RobotSpec, World
+from navigation.world import LidarSpec, Region, RobotSpec, World, load_world
 
 __all__ = ["random_forest_world", "random_free_points", "GAP", "MIN_OVERLAP", "MIN_PROTRUSION"]
 
@@ -460,3 +460,11 @@ def random_free_points(world: World, n: int, rng: np.random.Generator, margin: f
         out.append(good)
         total += len(good)
     return np.concatenate(out)[:n]
+
+
+def empty_world(name: str, start) -> World:
+    """The world file ``name`` without its obstacles, the robot starting at ``start`` ``(x, y)``
+    heading east: its regions and workspace, where the shortest paths are straight lines."""
+    w = load_world(name)
+    return replace(w, obstacles=(), known_obstacles=(),
+                   robot=replace(w.robot, start=(float(start[0]), float(start[1]), 0.0)))
