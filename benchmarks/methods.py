@@ -441,7 +441,6 @@ def tour_distances(world, names, *, ring: int = ORACLE_RING, offset: float = ORA
     disc, so a leg may end on the disc's boundary: ``ring`` points on it (a start inside a
     disc is one of its points). A path a metre long past a rounded corner is at most about
     ``offset`` times the turn longer than the exact shortest one."""
-    from scipy.sparse import csr_matrix
     from scipy.sparse.csgraph import dijkstra
 
     from tamp.roadmap import Roadmap, RoadmapConfig
@@ -469,13 +468,9 @@ def tour_distances(world, names, *, ring: int = ORACLE_RING, offset: float = ORA
         raise RuntimeError("the oracle's roadmap kept other touch points than its free-space test")
     vid = np.full(len(cand), -1)
     vid[keep] = idx
-    n = len(rm.points)
-    i, j = rm.pairs[:, 0], rm.pairs[:, 1]
-    w = np.linalg.norm(rm.points[i] - rm.points[j], axis=1)
-    graph = csr_matrix((np.concatenate([w, w]), (np.concatenate([i, j]), np.concatenate([j, i]))), shape=(n, n))
     rings = {name: vid[(owner == k) & keep] for k, name in enumerate(names)}
     sources = np.concatenate([[vid[0]], *rings.values()])
-    return dijkstra(graph, directed=False, indices=sources), vid[0], rings
+    return dijkstra(rm.graph(), directed=False, indices=sources), vid[0], rings
 
 
 def oracle_tour(world, sequence, visit_all: bool = False) -> tuple[float | None, list[str]]:

@@ -373,6 +373,15 @@ class Roadmap:
         s = slice(indptr[i], indptr[i + 1])
         return dst[s], length[s], angle[s]
 
+    def graph(self):
+        """The roadmap as a ``scipy.sparse.csr_matrix`` ``(n_V, n_V)`` of edge lengths, both
+        directions of every visible pair (for ``scipy.sparse.csgraph``)."""
+        from scipy.sparse import csr_matrix
+
+        indptr, dst, length, _ = self._adj
+        n = len(self.points)
+        return csr_matrix((length, dst, indptr), shape=(n, n))
+
     def safe_points(self, q) -> np.ndarray:
         """True where the points ``q (K, 2)`` are outside every ``G_j`` and inside ``W'``."""
         return _outside_all(self.P, self.free_workspace, np.asarray(q, dtype=float).reshape(-1, 2))

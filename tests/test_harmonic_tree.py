@@ -133,6 +133,16 @@ def test_random_world_paths_are_safe_and_costed(seed):
     _all_pairs(world, rm, seed, allow_blocked=True)
 
 
+def test_roadmap_graph_is_its_visible_pairs_with_their_lengths():
+    """:meth:`Roadmap.graph`: exactly the visible pairs, both directions, weighted by the
+    distance between their vertices (the evaluation's oracle runs Dijkstra on it)."""
+    rm = Roadmap.from_world(shared_world("office"))
+    g = rm.graph().tocoo()
+    assert g.shape == (len(rm.points), len(rm.points)) and g.nnz == 2 * len(rm.pairs)
+    assert set(zip(g.row.tolist(), g.col.tolist())) == {(int(i), int(j)) for a, b in rm.pairs for i, j in ((a, b), (b, a))}
+    np.testing.assert_allclose(g.data, np.linalg.norm(rm.points[g.row] - rm.points[g.col], axis=1), rtol=0, atol=1e-12)
+
+
 def _dijkstra(rm, start, goal, weights, H):
     G = tree_graph(rm, start, goal, weights, H)
     return nx.dijkstra_path_length(G, "start", "goal")
