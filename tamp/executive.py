@@ -326,7 +326,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 
 from navigation.clearance import forest_clearance
@@ -1884,8 +1883,7 @@ class Executive:
         if not len(pts):
             return np.zeros((0, 2)), np.zeros(0, dtype=int)
         n = len(pts)
-        ncomp, lab = connected_components(
-            csr_matrix((np.ones(len(rm.pairs)), (rm.pairs[:, 0], rm.pairs[:, 1])), shape=(n, n)), directed=False)
+        ncomp, lab = connected_components(rm.graph(), directed=False)
         seen = rm.visible(np.repeat(np.asarray(p[:2], dtype=float)[None], n, axis=0), pts)
         first = np.isin(lab, np.unique(lab[seen]))
         keep = np.linalg.norm(pts[:, None, :] - avoid[None], axis=2).min(axis=1) >= LOOK_SPACING
