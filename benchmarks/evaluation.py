@@ -2,7 +2,8 @@
 
 Run from the repository root::
 
-    python -m benchmarks.evaluation [--quick] [--out DIR] [--random N] [--methods HT HT-fields OHPF NF RRT* oracle]
+    python -m benchmarks.evaluation [--quick] [--out DIR] [--random N]
+                                    [--methods HT HT-fields OHPF NF RRT* RRT*-buffer oracle]
                                     [--jobs N] [--max-time S]
 
 Scenarios: the shared worlds ``office`` (its mission and its urgent ``u1`` event at 60 s) and
@@ -13,8 +14,9 @@ simulator is seeded with 0. ``--quick`` runs two small random worlds (8 obstacle
 and 1) and a reduced timing sweep: the CI smoke test.
 
 Methods (:mod:`benchmarks.methods`): ``HT``, ``HT-fields`` (HT with the paper's execution, a
-field per waypoint), ``OHPF``, ``NF``, ``RRT*`` (skipped, with the reason in the report, when
-OMPL's Python bindings do not work) and ``oracle``.
+field per waypoint), ``OHPF``, ``NF``, ``RRT*`` and ``RRT*-buffer`` (RRT* keeping HT's 0.15 m
+clearance instead of 5 cm; both skipped, with the reason in the report, when OMPL's Python
+bindings do not work) and ``oracle``.
 
 Every method's run on every scenario is a process of its own, forked from the prepared parent
 (:func:`benchmarks._common.isolated_map`): no run is timed with the memos (forest results, LTL
@@ -22,7 +24,9 @@ translation) that another method's run on the same scenario filled. ``--jobs N``
 time.
 
 Metrics per method and scenario: completed, collisions, planning time (initial and total, wall
-s), execution time (simulated s), travel distance and its ratio to the oracle, replans,
+s), execution time (simulated s), travel distance and its ratio to the oracle (and to the
+tour keeping the method's own clearance, :data:`benchmarks.methods.CLEARANCE`: what is left of
+the distance once its safety margin is paid for), replans,
 oscillation (sign changes of the commanded turn rate per metre, ``tamp.run``), chatter
 (sign flips of the executed turn rate between consecutive control periods per metre;
 *oscillation flagged* when above ``CHATTER_FLAG``), minimum clearance. Over the random set:
@@ -48,15 +52,18 @@ import cv2
 import numpy as np
 
 from benchmarks._common import isolated_map, log, machine_info, write_results
-from benchmarks.methods import ADAPTATION, METHODS, ompl_status, oracle_tour, run_method
+from benchmarks.methods import ADAPTATION, CLEARANCE, METHODS, ompl_status, oracle_tour, run_method
 
 __all__ = ["main", "run", "scenario", "render_markdown", "chatter_table", "targets", "CHATTER_FLAG", "SHARED"]
 
 SHARED = ("office", "cluttered20")
 CHATTER_FLAG = 1.0  #: chatter (flips per metre) above which a run's oscillation is flagged
 QUICK_OBSTACLES = 8
-RANDOM_KEYS = ("distance", "ratio", "execution_time", "planning_time", "initial_planning_time", "max_replan_time",
-               "replans", "oscillation", "chatter", "min_clearance")
+#: the clearances (m beyond the robot radius) whose tours the shared worlds' report lists, besides
+#: those of the methods run (:data:`benchmarks.methods.CLEARANCE`)
+SHARED_CLEARANCES = (0.0, 0.03, 0.05, 0.10, 0.15)
+RANDOM_KEYS = ("distance", "ratio", "own_ratio", "execution_time", "planning_time", "initial_planning_time",
+               "max_replan_time", "replans", "oscillation", "chatter", "min_clearance")
 _VISIT_ALL = re.compile(r"^\s*F\s*\w+(\s*&\s*F\s*\w+)*\s*$")
 
 
@@ -108,9 +115,22 @@ def _scenario_result(name: str, methods: Sequence[str], quick: bool, runs: dict)
         d, order = oracle_tour(world, ref, visit_all=visit_all)
         out["runs"]["oracle"] = {"distance": d, "visited": order, "completed": d is not None,
                                  "orders": "all orders" if visit_all else "HT's order", "wall": time.perf_counter() - t0}
-        for r in out["runs"].values():
+        # the tour at each method's own clearance (and, on the shared worlds, at a few more):
+        # how much of a method's distance is its clearance, how much its execution
+        wanted = {CLEARANCE.get(m) for m in out["runs"]} | (set(SHARED_CLEARANCES) if name in SHARED else set())
+        bounds = {0.0: d}
+        for b in sorted(c for c in wanted if c):
+            try:
+                bounds[b] = oracle_tour(world, ref, visit_all=visit_all, buffer=b)[0]
+            except ValueError:  # the start itself closer than b to an obstacle
+                bounds[b] = None
+        out["clearance_tours"] = {f"{b:g}": v for b, v in sorted(bounds.items())}
+        for m, r in out["runs"].items():
             if "distance" in r and d:
                 r["ratio"] = r["distance"] / d
+            own = bounds.get(CLEARANCE.get(m)) if m != "oracle" else None
+            if r.get("distance") is not None and own:
+                r["own_ratio"] = r["distance"] / own
     return out
 
 
@@ -133,7 +153,7 @@ def _timing(quick: bool) -> dict:
 
 # -------------------------------------------------------------------------------- figures
 _COLOURS = {"HT": (0, 0, 220), "HT-fields": (200, 0, 200), "OHPF": (0, 150, 0), "NF": (220, 60, 0),
-            "RRT*": (0, 140, 255)}  # BGR, as Fig. 14 (HT-fields: magenta)
+            "RRT*": (0, 140, 255), "RRT*-buffer": (40, 90, 150)}  # BGR, as Fig. 14 (HT-fields: magenta)
 
 
 def draw_trajectories(world, runs: dict, size: int = 720) -> np.ndarray:
@@ -221,10 +241,11 @@ def run(names: Sequence[str], methods: Sequence[str], *, quick: bool = False, jo
     methods = list(methods)
     ompl = ompl_status()
     skipped = {}
-    if "RRT*" in methods and not ompl[0]:
-        methods.remove("RRT*")
-        skipped["RRT*"] = ompl[1]
-        log(f"[eval] RRT* skipped: {ompl[1]}")
+    for m in [m for m in methods if m.startswith("RRT*")]:
+        if not ompl[0]:
+            methods.remove(m)
+            skipped[m] = ompl[1]
+            log(f"[eval] {m} skipped: {ompl[1]}")
     tasks = [(n, m, quick, max_time) for n in names for m in methods if m != "oracle"]
     t0 = time.perf_counter()
     results = isolated_map(_run_one, tasks, jobs, _log_run)
@@ -305,8 +326,11 @@ def targets(result: dict) -> list[dict]:
                           f"HT {r['distance']:.2f} m, shortest other {m} {d:.2f} m"
                           + (f" ({c} contact steps)" if c else "")))
         ratio = r.get("ratio")
-        within.append((s["scenario"], None if ratio is None else ratio <= 1.25,
-                       "no oracle" if ratio is None else f"{ratio:.2f} x"))
+        detail = "no oracle" if ratio is None else f"{ratio:.2f} x"
+        d0, dh = (s.get("clearance_tours") or {}).get("0"), (s.get("clearance_tours") or {}).get(f"{CLEARANCE['HT']:g}")
+        if ratio is not None and d0 and dh:
+            detail += f" (the tour keeping HT's {CLEARANCE['HT']:g} m buffer: {dh:.2f} m, {dh / d0:.2f} x)"
+        within.append((s["scenario"], None if ratio is None else ratio <= 1.25, detail))
 
     def fold(name, items, what):
         met = [m for _, m, _ in items]
@@ -369,23 +393,30 @@ def _yes(r):
 def scenario_table(s: dict) -> list[str]:
     lines = [f"### {s['scenario']} ({s['n_obstacles']} obstacles; task `{s['task']}`)", "",
              "| method | completed | collisions | planning initial / total s | execution s | distance m | "
-             "/ oracle | replans | oscillation /m | chatter /m | oscillation flagged | min clearance m | "
-             "adaptation | visited |",
-             "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|---|---|"]
+             "/ oracle | / own clearance | replans | oscillation /m | chatter /m | oscillation flagged | "
+             "min clearance m | adaptation | visited |",
+             "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|---|---|"]
     for m, r in s["runs"].items():
         adapt = {True: "yes", False: "no", None: "-"}[ADAPTATION.get(m)]
         if m == "oracle":
-            lines.append(f"| oracle | - | - | - | - | {_f(r['distance'])} | 1.00 | - | - | - | - | - | - | "
+            lines.append(f"| oracle | - | - | - | - | {_f(r['distance'])} | 1.00 | - | - | - | - | - | - | - | "
                          f"{' '.join(r['visited'])} ({r['orders']}) |")
             continue
         if "error" in r:
-            lines.append(f"| {m} | ERROR: {r['error']} |" + " |" * 12)
+            lines.append(f"| {m} | ERROR: {r['error']} |" + " |" * 13)
             continue
         lines.append(
             f"| {m} | {_yes(r)} | {r['collisions']} | {r['initial_planning_time']:.3f} / {r['planning_time']:.3f} | "
-            f"{r['execution_time']:.1f} | {r['distance']:.2f} | {_f(r.get('ratio'))} | {r['replans']} | "
+            f"{r['execution_time']:.1f} | {r['distance']:.2f} | {_f(r.get('ratio'))} | {_f(r.get('own_ratio'))} | "
+            f"{r['replans']} | "
             f"{r['oscillation']:.2f} | {r['chatter']:.2f} | {'yes' if r['chatter'] > CHATTER_FLAG else 'no'} | "
             f"{r['min_clearance']:.3f} | {adapt} | {' '.join(r['visited'])} |")
+    tours = s.get("clearance_tours")
+    if tours:
+        lines += ["", "Tour with every obstacle known, keeping a clearance beyond the robot radius (the oracle at "
+                  "0; `/ own clearance` divides by the tour at the method's own: "
+                  + ", ".join(f"{m} {c:g} m" for m, c in CLEARANCE.items() if c is not None and m in s["runs"])
+                  + "): " + ", ".join(f"{c} m: {_f(v)} m" for c, v in tours.items()) + "."]
     return lines + [""]
 
 
@@ -438,17 +469,20 @@ def render_markdown(result: dict) -> str:
                 "Success rate, collisions and the planning sum (planning total over every run) over all runs; "
                 "median / p90 over the completed runs. OHPF plans HT's trees (only its execution differs): "
                 "where both drive one plan their planning times are equal by construction, and the sum shows "
-                "the re-plans each execution causes.", "",
-                "| method | success | collisions | flagged | distance m | / oracle | execution s | planning total s | "
-                "planning sum s | planning initial s | max replan s | replans | oscillation /m | chatter /m | "
-                "min clearance m |",
-                "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+                "the re-plans each execution causes. `/ own clearance`: the distance over the tour keeping the "
+                "method's own clearance ("
+                + ", ".join(f"{m} {c:g} m" for m, c in CLEARANCE.items() if c is not None and m in methods)
+                + "; HT and OHPF pass narrow passages at the fallback buffer, so theirs can fall below 1).", "",
+                "| method | success | collisions | flagged | distance m | / oracle | / own clearance | execution s | "
+                "planning total s | planning sum s | planning initial s | max replan s | replans | oscillation /m | "
+                "chatter /m | min clearance m |",
+                "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
         for m in methods:
             a = result["aggregates"][m]
             if m == "oracle":
                 d = a["distance"]
                 out.append(f"| oracle | {a['completed']}/{a['runs']} | - | - | "
-                           f"{_f(d and d['median'])} / {_f(d and d['p90'])} |" + " - |" * 10)
+                           f"{_f(d and d['median'])} / {_f(d and d['p90'])} |" + " - |" * 11)
                 continue
 
             def mp(k, fmt="{:.2f}"):
@@ -456,7 +490,8 @@ def render_markdown(result: dict) -> str:
                 return "-" if v is None else f"{fmt.format(v['median'])} / {fmt.format(v['p90'])}"
 
             out.append(f"| {m} | {a['completed']}/{a['runs']} | {a['collisions']} | {a['flagged']} | {mp('distance')} | "
-                       f"{mp('ratio')} | {mp('execution_time', '{:.1f}')} | {mp('planning_time', '{:.3f}')} | "
+                       f"{mp('ratio')} | {mp('own_ratio')} | {mp('execution_time', '{:.1f}')} | "
+                       f"{mp('planning_time', '{:.3f}')} | "
                        f"{_f(a.get('planning_sum'), '{:.2f}')} | {mp('initial_planning_time', '{:.3f}')} | "
                        f"{mp('max_replan_time', '{:.3f}')} | "
                        f"{mp('replans', '{:.0f}')} | {mp('oscillation')} | {mp('chatter')} | {mp('min_clearance', '{:.3f}')} |")

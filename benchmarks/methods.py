@@ -25,6 +25,9 @@ between two copies of the surrounding machinery:
            known + estimated obstacles grown by the robot radius and a margin, followed by
            a pure-pursuit path follower; the task plan is the initial one (no adaptation);
            the path is re-planned when a changed obstacle blocks its remainder.
+``RRT*-buffer``  :class:`RRTStarBufferExecutive`: ``RRT*`` keeping HT's clearance, the
+           harmonic trees' buffer (``ExecutiveConfig.buffer``, paper 001's 0.15 m) instead of
+           5 cm: the two RRT* rows separate what the clearance costs from what the method does.
 ``oracle`` :func:`oracle_tour`: a lower bound on the travel distance with full knowledge (the
            shortest collision-free tour touching the region discs in order; distance only).
 =========  ===========================================================================
@@ -53,12 +56,14 @@ from tamp.executive import Executive, ExecutiveConfig, ExecutiveState
 from tamp.navmap import START
 from tamp.run import run_mission
 
-__all__ = ["METHODS", "ADAPTATION", "OHPFExecutive", "NFExecutive", "RRTStarExecutive", "PlainField",
+__all__ = ["METHODS", "ADAPTATION", "CLEARANCE", "OHPFExecutive", "NFExecutive", "RRTStarExecutive",
+           "RRTStarBufferExecutive", "PlainField",
            "ompl_status", "run_method", "oracle_tour", "tour_distances", "chatter", "chatter_sources"]
 
-METHODS = ("HT", "HT-fields", "OHPF", "NF", "RRT*", "oracle")
+METHODS = ("HT", "HT-fields", "OHPF", "NF", "RRT*", "RRT*-buffer", "oracle")
 #: the paper's "Adaptation" column: does the task plan adapt to what the robot discovers
-ADAPTATION = {"HT": True, "HT-fields": True, "OHPF": True, "NF": False, "RRT*": False, "oracle": None}
+ADAPTATION = {"HT": True, "HT-fields": True, "OHPF": True, "NF": False, "RRT*": False, "RRT*-buffer": False,
+              "oracle": None}
 
 
 # --------------------------------------------------------------------------------------- OHPF
@@ -225,6 +230,7 @@ class RRTStarExecutive(_FixedPlanMixin, Executive):
 
     budget = 1.0
     margin = 0.05
+    fallback_margin = 0.0  # the last retry's margin, where no path keeps ``margin``
     lookahead = 0.25
     rotate_angle = math.pi / 4
     stuck_time = 1.0  # s held still while driving before the recovery (Nav2's progress checker: 10 s)
@@ -266,7 +272,8 @@ class RRTStarExecutive(_FixedPlanMixin, Executive):
         pts = self.world.workspace.boundary_points(256)
         bounds = (tuple(pts.min(axis=0)), tuple(pts.max(axis=0)))
         path = None
-        for margin, budget in ((self.margin, self.budget), (self.margin, 2 * self.budget), (0.0, 2 * self.budget)):
+        for margin, budget in ((self.margin, self.budget), (self.margin, 2 * self.budget),
+                               (self.fallback_margin, 2 * self.budget)):
             path = _rrt_star(bounds, p[:2], c, self._valid_fn(p, margin), budget)
             if path is not None:
                 break
@@ -396,7 +403,21 @@ def chatter_sources(poses, waypoints, replanned, dt: float) -> dict:
     return out
 
 
-_CLASSES = {"OHPF": OHPFExecutive, "NF": NFExecutive, "RRT*": RRTStarExecutive}
+class RRTStarBufferExecutive(RRTStarExecutive):
+    """:class:`RRTStarExecutive` keeping HT's clearance: the obstacles grown by the robot radius
+    plus the harmonic trees' ``buffer`` (paper 001: 0.15 m) instead of 5 cm, and where no path
+    keeps it, HT's ``fallback_buffer`` (0.03 m) in the last retry, as HT's trees fall back to it."""
+
+    margin = ExecutiveConfig().buffer
+    fallback_margin = ExecutiveConfig().fallback_buffer
+
+
+_CLASSES = {"OHPF": OHPFExecutive, "NF": NFExecutive, "RRT*": RRTStarExecutive, "RRT*-buffer": RRTStarBufferExecutive}
+#: the clearance (m beyond the robot radius) each method keeps from obstacles where it can, the
+#: buffer of :func:`oracle_tour`'s yardstick for it (``None``: no nominal clearance, NF's field);
+#: HT and OHPF go through narrow passages at ``fallback_buffer``, so they can undercut theirs
+CLEARANCE = {"HT": ExecutiveConfig().buffer, "HT-fields": ExecutiveConfig().buffer, "OHPF": ExecutiveConfig().buffer,
+             "NF": None, "RRT*": RRTStarExecutive.margin, "RRT*-buffer": RRTStarBufferExecutive.margin}
 #: the executive configuration of the baselines: the defaults without the route rescue and
 #: without going to look before stopping blocked, which both drive along harmonic trees (HT's
 #: execution layer; docs/executive.md), and tracking fields, not pursuing a tree's path
@@ -428,7 +449,7 @@ ORACLE_OFFSET = 0.005  #: distance (m) of the oracle roadmap's vertices off the 
 ORACLE_RING = 64  #: touch points sampled on each region's disc boundary
 
 
-def tour_distances(world, names, *, ring: int = ORACLE_RING, offset: float = ORACLE_OFFSET):
+def tour_distances(world, names, *, ring: int = ORACLE_RING, offset: float = ORACLE_OFFSET, buffer: float = 0.0):
     """Shortest collision-free path lengths with every obstacle known, from the robot's start and
     from points on the boundaries of the discs of the regions ``names``: ``(D, s, rings)``.
     ``rings[name]`` are the roadmap vertex indices of that region's touch points, ``s`` the
@@ -440,7 +461,12 @@ def tour_distances(world, names, *, ring: int = ORACLE_RING, offset: float = ORA
     every visible pair joined. A region counts as visited when the robot's centre enters its
     disc, so a leg may end on the disc's boundary: ``ring`` points on it (a start inside a
     disc is one of its points). A path a metre long past a rounded corner is at most about
-    ``offset`` times the turn longer than the exact shortest one."""
+    ``offset`` times the turn longer than the exact shortest one.
+
+    With ``buffer > 0`` the obstacles are grown by ``radius + buffer`` and the workspace shrunk
+    by as much: the shortest tour of a robot that keeps ``buffer`` from everything, the yardstick
+    of a method with that clearance (:data:`CLEARANCE`; touch points inside the grown obstacles
+    are dropped, and a disc left without any is unreachable)."""
     from scipy.sparse.csgraph import dijkstra
 
     from tamp.roadmap import Roadmap, RoadmapConfig
@@ -458,11 +484,12 @@ def tour_distances(world, names, *, ring: int = ORACLE_RING, offset: float = ORA
             cand.append(start[None, :])
             owner.append(np.array([k]))
     cand, owner = np.concatenate(cand), np.concatenate(owner)
-    config = RoadmapConfig(buffer=0.0, offset=offset)
+    config = RoadmapConfig(buffer=float(buffer), offset=offset)
     rm = Roadmap.build(world.workspace, world.obstacles, world.robot.radius, config, extra=cand)
     keep = rm.safe_points(cand)
     if not keep[0]:
-        raise ValueError(f"the start {tuple(start)} is not in the free space of {world.name}")
+        raise ValueError(f"the start {tuple(start)} is not in the free space of {world.name}"
+                         + (f" at buffer {buffer:g} m" if buffer else ""))
     idx = np.flatnonzero(rm.owner == -1)  # the kept candidates, in order
     if len(idx) != int(keep.sum()):
         raise RuntimeError("the oracle's roadmap kept other touch points than its free-space test")
@@ -473,13 +500,15 @@ def tour_distances(world, names, *, ring: int = ORACLE_RING, offset: float = ORA
     return dijkstra(rm.graph(), directed=False, indices=sources), vid[0], rings
 
 
-def oracle_tour(world, sequence, visit_all: bool = False) -> tuple[float | None, list[str]]:
+def oracle_tour(world, sequence, visit_all: bool = False, *, buffer: float = 0.0) -> tuple[float | None, list[str]]:
     """Lower bound on the travel distance of a run that enters the regions of ``sequence`` in
     that order, every obstacle known (:func:`tour_distances`): from the start to a point of the
     first disc, from there to a point of the next, and so on, minimised over the points by
     dynamic programming over the discs. With ``visit_all`` the smallest over every order of
     the distinct regions of ``sequence`` (a lower bound for any method on a visit-all
     mission). Returns the length (``None`` when no order has a path) and the order used.
+    ``buffer``: the tour keeping that clearance beyond the robot radius (:func:`tour_distances`),
+    the yardstick of a method that keeps it; ``0`` (default) is the lower bound.
 
     Since the forty-fifth session; before, the tour of the executive benchmark
     (:func:`benchmarks.executive.full_knowledge_tour`: from region centre to region centre,
@@ -491,7 +520,7 @@ def oracle_tour(world, sequence, visit_all: bool = False) -> tuple[float | None,
         orders = [list(o) for o in itertools.permutations(distinct)]
     if not seq:
         return 0.0, seq
-    D, s, rings = tour_distances(world, distinct)
+    D, s, rings = tour_distances(world, distinct, buffer=buffer)
     row = {int(v): k for k, v in enumerate(np.concatenate([[s], *rings.values()]))}
     best, best_order = None, seq
     for order in orders:

@@ -30,6 +30,10 @@ def test_quick_run_writes_report_and_ht_completes(tmp_path, capsys):
         fields = s["runs"]["HT-fields"]  # the paper's execution of the same system
         assert fields["completed"] and fields["collisions"] == 0 and fields["bad_commands"] == 0
         assert s["runs"]["oracle"]["distance"] > 0 and ht["ratio"] > 0
+        tours = s["clearance_tours"]  # the oracle and the tour at HT's buffer (NF has none)
+        assert set(tours) == {"0", "0.15"} and tours["0"] == s["runs"]["oracle"]["distance"]
+        assert tours["0.15"] >= tours["0"] - 0.01
+        assert ht["own_ratio"] == pytest.approx(ht["distance"] / tours["0.15"]) and "own_ratio" not in s["runs"]["NF"]
         for m in ("HT", "HT-fields"):  # the oracle is a lower bound on every completed run
             assert s["runs"][m]["distance"] >= s["runs"]["oracle"]["distance"]
         assert "error" not in s["runs"]["NF"], s["runs"]["NF"]["error"]  # a baseline that raised
@@ -46,6 +50,7 @@ def test_quick_run_writes_report_and_ht_completes(tmp_path, capsys):
     assert data["aggregates"]["oracle"]["planning_sum"] is None
     report = (out / "evaluation.md").read_text()
     assert "## Random forest worlds (2)" in report and "| HT | 2/2 |" in report and "| HT-fields | 2/2 |" in report
+    assert "| / oracle | / own clearance |" in report and data["aggregates"]["HT"]["own_ratio"]["median"] > 0
     assert "## Where the chatter comes from" in report
     goals = {t["target"]: t for t in data["targets"]}  # issue 8's targets, checked on the run
     assert goals["HT completes every mission with zero collisions"]["met"] is True
@@ -100,6 +105,9 @@ def test_targets_are_checked_exactly_on_a_made_up_run():
     assert short["detail"] == ("`office` HT 13.50 m, shortest other RRT* 13.10 m (3 contact steps); "
                                "`cluttered20` HT 9.70 m, shortest other RRT* 10.10 m")
     assert got["HT within 1.25 x the oracle on the shared worlds"]["met"] is True
+    clutter["clearance_tours"] = {"0": 8.3, "0.05": 8.5, "0.15": 9.9}  # the tour at HT's buffer named beside
+    assert evaluation.targets(result)[2]["detail"] == (
+        "`office` 1.02 x; `cluttered20` 1.17 x (the tour keeping HT's 0.15 m buffer: 9.90 m, 1.19 x)")
     ohpf = got["HT's planning time below OHPF's total"]
     assert ohpf["met"] is True and "random set sum over 2 worlds 0.16 s against 0.25 s (1/2 worlds each)" in ohpf["detail"]
     rrt = got["HT's planning time at least 10 x below RRT*'s"]
@@ -150,13 +158,13 @@ def test_chatter_sources_attribute_each_flip_to_the_change_on_its_tick():
     assert chatter_sources(poses[:2], waypoints[:2], replanned[:2], dt)["tracking"] == 0  # too short: no flips
 
 
-def _rrt_executive():
+def _rrt_executive(cls=None):
     from benchmarks.methods import BASELINE_CONFIG, RRTStarExecutive
 
     from .conftest import shared_world
 
     # simple's obstacles known: among them a disc of radius 0.2 m at (1.0, 1.5)
-    return RRTStarExecutive(shared_world("simple"), known=True, config=BASELINE_CONFIG)
+    return (cls or RRTStarExecutive)(shared_world("simple"), known=True, config=BASELINE_CONFIG)
 
 
 def test_rrt_star_follower_turns_in_place_beyond_the_rotate_angle():
@@ -242,3 +250,24 @@ def test_rrt_star_follower_sends_commands_within_the_robots_rate_limit(monkeypat
     assert steps[:, 0].max() <= cfg.accel_max * dt + 1e-9
     assert steps[:, 1].max() <= cfg.alpha_max * dt + 1e-9
     assert np.any(np.abs(cmd[:, 1]) > 0.5 * cfg.omega_max)  # it turned at c: the limit was exercised
+
+
+def test_rrt_star_buffer_keeps_hts_clearance_and_falls_back_as_ht_does(monkeypatch):
+    """``RRT*-buffer`` is RRT* with HT's clearance: its obstacles grown by the robot radius plus
+    the trees' ``buffer``; where OMPL finds no path at it (twice the budget too), the last retry
+    keeps HT's ``fallback_buffer``, where plain RRT* keeps no margin (OMPL replaced by a recorder
+    that finds no path, so the test runs without ``ompl``)."""
+    from benchmarks import methods
+    from tamp.executive import ExecutiveConfig
+
+    assert methods.RRTStarBufferExecutive.margin == ExecutiveConfig().buffer == 0.15
+    assert methods.CLEARANCE["RRT*-buffer"] == ExecutiveConfig().buffer and methods.CLEARANCE["RRT*"] == 0.05
+    assert methods.CLEARANCE["HT"] == ExecutiveConfig().buffer and methods.CLEARANCE["NF"] is None
+    for cls, fallback in ((methods.RRTStarExecutive, 0.0), (methods.RRTStarBufferExecutive, 0.03)):
+        ex = _rrt_executive(cls)
+        margins = []
+        monkeypatch.setattr(ex, "_valid_fn", lambda p, margin: margins.append(margin) or (lambda x, y: True))
+        monkeypatch.setattr(methods, "_rrt_star", lambda bounds, start, goal, valid, budget: None)
+        ex._set_leg((0.5, 2.5, 0.0), "a")
+        assert margins == [cls.margin, cls.margin, fallback]
+        assert ex.state.name == "BLOCKED"
