@@ -177,9 +177,17 @@ def ompl_status() -> tuple[bool, str]:
         return False, f"ompl imported but RRTstar failed: {type(err).__name__}: {err}"
     if path is None:
         return False, "ompl imported but RRTstar found no path in an empty square"
+    import importlib.metadata
+
     import ompl
 
-    return True, f"ompl {getattr(ompl, '__version__', '?')} ({ompl.__file__})"
+    version = getattr(ompl, "__version__", None)
+    if version is None:  # the nanobind wheels (ompl 2) have no ``__version__``: the installed distribution's
+        try:
+            version = importlib.metadata.version("ompl")
+        except importlib.metadata.PackageNotFoundError:
+            version = "(version unknown)"
+    return True, f"ompl {version} ({ompl.__file__})"
 
 
 def _rrt_star(bounds, start, goal, valid, budget: float, resolution: float = 0.005):
