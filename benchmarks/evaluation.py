@@ -4,7 +4,7 @@ Run from the repository root::
 
     python -m benchmarks.evaluation [--quick] [--out DIR] [--random N]
                                     [--methods HT HT-fields OHPF NF RRT* RRT*-buffer oracle]
-                                    [--jobs N] [--max-time S]
+                                    [--jobs N] [--max-time S] [--rrt-seed N]
 
 Scenarios: the shared worlds ``office`` (its mission and its urgent ``u1`` event at 60 s) and
 ``cluttered20`` (visit ``d1 .. d4``), and the random forest worlds
@@ -83,11 +83,11 @@ def scenario(name: str, quick: bool = False):
 
 def _run_one(args) -> dict:
     """One method on one scenario (in a child process of its own, :func:`benchmarks._common.isolated_map`)."""
-    name, m, quick, max_time = args
+    name, m, quick, max_time, rrt_seed = args
     world, task = scenario(name, quick)
     t0 = time.perf_counter()
     try:
-        r = run_method(m, world, task, max_time=max_time)
+        r = run_method(m, world, task, max_time=max_time, rrt_seed=rrt_seed)
     except Exception as err:  # noqa: BLE001 - a crashing baseline is a result, not the end of the suite
         r = {"error": f"{type(err).__name__}: {err}", "completed": False}
     r["wall"] = time.perf_counter() - t0
@@ -237,7 +237,7 @@ def draw_line_chart(series: dict, xlabel: str, ylabel: str, title: str, size=(64
 
 # ------------------------------------------------------------------------------------ run
 def run(names: Sequence[str], methods: Sequence[str], *, quick: bool = False, jobs: int = 1,
-        max_time: float = 300.0, timing: bool = True) -> dict:
+        max_time: float = 300.0, timing: bool = True, rrt_seed: int = 1) -> dict:
     methods = list(methods)
     ompl = ompl_status()
     skipped = {}
@@ -246,14 +246,15 @@ def run(names: Sequence[str], methods: Sequence[str], *, quick: bool = False, jo
             methods.remove(m)
             skipped[m] = ompl[1]
             log(f"[eval] {m} skipped: {ompl[1]}")
-    tasks = [(n, m, quick, max_time) for n in names for m in methods if m != "oracle"]
+    tasks = [(n, m, quick, max_time, rrt_seed) for n in names for m in methods if m != "oracle"]
     t0 = time.perf_counter()
     results = isolated_map(_run_one, tasks, jobs, _log_run)
     runs: dict[str, dict] = {n: {} for n in names}
-    for (n, m, _, _), r in zip(tasks, results):
+    for (n, m, *_), r in zip(tasks, results):
         runs[n][m] = r
     scenarios = [_scenario_result(n, methods, quick, runs[n]) for n in names]
-    result = {"command": None, "quick": quick, "methods": methods, "skipped": skipped, "ompl": ompl[1], "max_time": max_time,
+    result = {"command": None, "quick": quick, "methods": methods, "skipped": skipped, "ompl": ompl[1],
+              "rrt_seed": rrt_seed, "max_time": max_time,
               "chatter_flag": CHATTER_FLAG, "scenarios": scenarios, "wall": time.perf_counter() - t0,
               "machine": machine_info()}
     result["aggregates"] = aggregate([s for s in scenarios if s["scenario"].startswith("random")], methods)
@@ -448,7 +449,8 @@ def render_markdown(result: dict) -> str:
     out = ["# Evaluation: paper 001 Table 1 on our worlds", "",
            f"Command: `{result.get('command') or 'python -m benchmarks.evaluation'}`; wall {result['wall']:.0f} s; "
            f"at most {result['max_time']:.0f} simulated s per mission; RRT*: "
-           + (f"skipped ({result['skipped']['RRT*']})" if "RRT*" in result["skipped"] else result["ompl"]) + ".",
+           + (f"skipped ({result['skipped']['RRT*']})" if "RRT*" in result["skipped"] else
+              f"{result['ompl']}, seed {result.get('rrt_seed', 1)}") + ".",
            "",
            "Planning time: wall s (initial synthesis, and total with every re-plan). Execution time: simulated s. "
            "Oscillation: sign changes of the commanded turn rate per metre (`tamp.run`). Chatter: sign flips of "
@@ -555,6 +557,16 @@ def _strip(result: dict) -> dict:
     return r
 
 
+def _seed(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1 (OMPL ignores a seed of 0), got {value}")
+    return value
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks.evaluation", description=__doc__.split("\n\n")[0],
                                      formatter_class=argparse.ArgumentDefaultsHelpFormatter)
@@ -564,6 +576,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=list(METHODS), help="methods to run")
     parser.add_argument("--jobs", type=int, default=1, help="runs (one method on one scenario, a process each) at a time")
     parser.add_argument("--max-time", type=float, default=300.0, help="simulated seconds per mission")
+    parser.add_argument("--rrt-seed", type=_seed, default=1,
+                        help="OMPL's random seed for the RRT* methods (every query; at least 1): runs are reproducible, "
+                             "another seed shows another draw of the randomised planner")
     parser.add_argument("--no-timing", action="store_true", help="skip the potential-construction timing sweep")
     parser.add_argument("--out", type=Path, default=None,
                         help="output directory (default benchmarks/results/evaluation[_quick])")
@@ -571,7 +586,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     names = ["random0", "random1"] if args.quick else list(args.shared) + [f"random{s}" for s in range(args.random)]
     out = args.out or Path("benchmarks") / "results" / ("evaluation_quick" if args.quick else "evaluation")
     result = run(names, args.methods, quick=args.quick, jobs=max(1, args.jobs), max_time=args.max_time,
-                 timing=not args.no_timing)
+                 timing=not args.no_timing, rrt_seed=args.rrt_seed)
     result["command"] = "python -m benchmarks.evaluation" + ("" if argv is None and len(sys.argv) <= 1 else " " + " ".join(
         sys.argv[1:] if argv is None else argv))
     out.mkdir(parents=True, exist_ok=True)

@@ -172,7 +172,7 @@ def ompl_status() -> tuple[bool, str]:
     except Exception as err:  # noqa: BLE001 - any import failure means "not available"
         return False, f"import ompl failed: {type(err).__name__}: {err}"
     try:
-        path = _rrt_star([(0.0, 0.0), (1.0, 1.0)], (0.1, 0.1), (0.9, 0.9), lambda x, y: True, 0.05)
+        path = _rrt_star([(0.0, 0.0), (1.0, 1.0)], (0.1, 0.1), (0.9, 0.9), lambda x, y: True, 50)
     except Exception as err:  # noqa: BLE001
         return False, f"ompl imported but RRTstar failed: {type(err).__name__}: {err}"
     if path is None:
@@ -190,11 +190,20 @@ def ompl_status() -> tuple[bool, str]:
     return True, f"ompl {version} ({ompl.__file__})"
 
 
-def _rrt_star(bounds, start, goal, valid, budget: float, resolution: float = 0.005):
-    """OMPL ``RRTstar`` in the plane (path-length objective, ``budget`` s), then OMPL's path
-    simplifier; the waypoints ``(N, 2)``, or ``None`` without an exact solution."""
+def _rrt_star(bounds, start, goal, valid, iterations: int, resolution: float = 0.005, seed: int = 1):
+    """OMPL ``RRTstar`` in the plane (path-length objective, ``iterations`` iterations of its
+    loop), then OMPL's path simplifier; the waypoints ``(N, 2)``, or ``None`` without an exact
+    solution.
+
+    Reproducible: OMPL's random numbers are seeded with ``seed`` (>= 1) before the query's
+    objects are made, and the planner stops after a fixed amount of work instead of a time, so
+    a query's path depends only on its inputs, on any machine and whatever ran before."""
     from ompl import base as ob, geometric as og, util as ou
 
+    # OMPL logs an error when it is reseeded after its first draw: the RNGs made from now on
+    # (this query's planner and samplers) follow the new seed, which is all that is needed
+    ou.setLogLevel(ou.LOG_NONE)
+    ou.RNG.setSeed(int(seed))
     ou.setLogLevel(ou.LOG_WARN)
     (x0, y0), (x1, y1) = bounds
     space = ob.RealVectorStateSpace(2)
@@ -213,7 +222,13 @@ def _rrt_star(bounds, start, goal, valid, budget: float, resolution: float = 0.0
     planner = og.RRTstar(si)
     planner.setProblemDefinition(pdef)
     planner.setup()
-    planner.solve(float(budget))
+    calls = [0]
+
+    def done() -> bool:  # evaluated once per iteration of RRT*'s loop
+        calls[0] += 1
+        return calls[0] > iterations
+
+    planner.solve(ob.PlannerTerminationCondition(done))
     if not pdef.hasExactSolution():
         return None
     path = pdef.getSolutionPath()
@@ -224,8 +239,10 @@ def _rrt_star(bounds, start, goal, valid, budget: float, resolution: float = 0.0
 class RRTStarExecutive(_FixedPlanMixin, Executive):
     """OMPL RRT* path to each region of the initial plan, pure-pursuit path following.
 
-    Class attributes (documented in ``docs/evaluation.md``): ``budget`` s of RRT* per query
-    (doubled once when no exact solution is found), obstacles grown by ``radius + margin``,
+    Class attributes (documented in ``docs/evaluation.md``): ``iterations`` of RRT* per query
+    (about 1 s on the 2-core reference machine; doubled once when no exact solution is found;
+    OMPL seeded with ``seed`` per query, so every run is reproducible), obstacles grown by
+    ``radius + margin``,
     pure pursuit with look-ahead ``lookahead`` m and speed ``v_max cos(alpha)``, turning in
     place when the look-ahead point is more than ``rotate_angle`` off the heading (Nav2's
     regulated pure pursuit rotates to the path's heading beyond 0.785 rad by default); a robot
@@ -236,7 +253,8 @@ class RRTStarExecutive(_FixedPlanMixin, Executive):
     so RRT* drives the robot the other methods drive.
     """
 
-    budget = 1.0
+    iterations = 700  # RRT* iterations per query: 500-900 a second in these worlds (forty-sixth session)
+    seed = 1  # OMPL's seed for every query (``ompl.util.RNG.setSeed``; at least 1)
     margin = 0.05
     fallback_margin = 0.0  # the last retry's margin, where no path keeps ``margin``
     lookahead = 0.25
@@ -280,9 +298,9 @@ class RRTStarExecutive(_FixedPlanMixin, Executive):
         pts = self.world.workspace.boundary_points(256)
         bounds = (tuple(pts.min(axis=0)), tuple(pts.max(axis=0)))
         path = None
-        for margin, budget in ((self.margin, self.budget), (self.margin, 2 * self.budget),
-                               (self.fallback_margin, 2 * self.budget)):
-            path = _rrt_star(bounds, p[:2], c, self._valid_fn(p, margin), budget)
+        for margin, iterations in ((self.margin, self.iterations), (self.margin, 2 * self.iterations),
+                                   (self.fallback_margin, 2 * self.iterations)):
+            path = _rrt_star(bounds, p[:2], c, self._valid_fn(p, margin), iterations, seed=self.seed)
             if path is not None:
                 break
         if path is None:
@@ -434,15 +452,23 @@ BASELINE_CONFIG = ExecutiveConfig(route_rescue=False, look_tries=0, pursuit=0.0)
 FIELDS_CONFIG = ExecutiveConfig(pursuit=0.0)
 
 
-def run_method(method: str, world, task=None, *, seed: int = 0, max_time: float = 300.0) -> dict:
-    """Run ``method`` (one of :data:`METHODS` but ``oracle``) on ``world``'s mission (or ``task``)."""
+def run_method(method: str, world, task=None, *, seed: int = 0, max_time: float = 300.0,
+               rrt_seed: int | None = None) -> dict:
+    """Run ``method`` (one of :data:`METHODS` but ``oracle``) on ``world``'s mission (or ``task``).
+    ``seed``: the simulator's; ``rrt_seed``: OMPL's for the RRT* methods (default
+    :attr:`RRTStarExecutive.seed`; at least 1)."""
+    if rrt_seed is not None and not (isinstance(rrt_seed, int) and rrt_seed >= 1):
+        raise ValueError(f"rrt_seed must be an integer of at least 1 (OMPL ignores 0), got {rrt_seed!r}")
     if method == "HT":
         r = run_mission(world, task, seed=seed, max_time=max_time, record=True)
     elif method == "HT-fields":
         r = run_mission(world, task, seed=seed, max_time=max_time, record=True, config=FIELDS_CONFIG)
     elif method in _CLASSES:
         # the route rescue pursues harmonic trees' segments: part of HT's execution, not the baselines'
-        r = run_mission(world, task, seed=seed, max_time=max_time, record=True, executive_cls=_CLASSES[method],
+        cls = _CLASSES[method]
+        if rrt_seed is not None and issubclass(cls, RRTStarExecutive):
+            cls = type(cls.__name__, (cls,), {"seed": rrt_seed})
+        r = run_mission(world, task, seed=seed, max_time=max_time, record=True, executive_cls=cls,
                         config=BASELINE_CONFIG)
     else:
         raise ValueError(f"unknown method {method!r}, must be one of {', '.join(m for m in METHODS if m != 'oracle')}")

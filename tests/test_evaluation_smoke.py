@@ -237,7 +237,7 @@ def test_rrt_star_follower_sends_commands_within_the_robots_rate_limit(monkeypat
     from tamp.run import run_mission
     from tests.worldgen import empty_world
 
-    monkeypatch.setattr(methods, "_rrt_star", lambda bounds, start, goal, valid, budget: np.array([start, goal]))
+    monkeypatch.setattr(methods, "_rrt_star", lambda bounds, start, goal, valid, iterations, seed: np.array([start, goal]))
     world = empty_world("simple", (0.5, 0.5))
     r = run_mission(world, "F b & F c", config=methods.BASELINE_CONFIG, record=True,
                     executive_cls=methods.RRTStarExecutive, max_time=60.0)
@@ -254,7 +254,7 @@ def test_rrt_star_follower_sends_commands_within_the_robots_rate_limit(monkeypat
 
 def test_rrt_star_buffer_keeps_hts_clearance_and_falls_back_as_ht_does(monkeypatch):
     """``RRT*-buffer`` is RRT* with HT's clearance: its obstacles grown by the robot radius plus
-    the trees' ``buffer``; where OMPL finds no path at it (twice the budget too), the last retry
+    the trees' ``buffer``; where OMPL finds no path at it (twice the iterations too), the last retry
     keeps HT's ``fallback_buffer``, where plain RRT* keeps no margin (OMPL replaced by a recorder
     that finds no path, so the test runs without ``ompl``)."""
     from benchmarks import methods
@@ -265,9 +265,35 @@ def test_rrt_star_buffer_keeps_hts_clearance_and_falls_back_as_ht_does(monkeypat
     assert methods.CLEARANCE["HT"] == ExecutiveConfig().buffer and methods.CLEARANCE["NF"] is None
     for cls, fallback in ((methods.RRTStarExecutive, 0.0), (methods.RRTStarBufferExecutive, 0.03)):
         ex = _rrt_executive(cls)
-        margins = []
+        margins, queries = [], []
         monkeypatch.setattr(ex, "_valid_fn", lambda p, margin: margins.append(margin) or (lambda x, y: True))
-        monkeypatch.setattr(methods, "_rrt_star", lambda bounds, start, goal, valid, budget: None)
+        monkeypatch.setattr(methods, "_rrt_star",
+                            lambda bounds, start, goal, valid, iterations, seed: queries.append((iterations, seed)))
         ex._set_leg((0.5, 2.5, 0.0), "a")
         assert margins == [cls.margin, cls.margin, fallback]
+        n = cls.iterations  # a fixed amount of work per query, doubled for the retries; OMPL seeded each time
+        assert queries == [(n, cls.seed), (2 * n, cls.seed), (2 * n, cls.seed)] and n > 0 and cls.seed >= 1
         assert ex.state.name == "BLOCKED"
+
+
+def test_rrt_star_queries_are_reproducible():
+    """A query's path depends only on its inputs and OMPL's seed, not on what ran before it in the
+    process (OMPL reseeded per query, a fixed number of iterations instead of a time budget), so
+    evaluation runs repeat; another seed draws another path. Needs OMPL (the ``eval`` extra), which
+    CI does not install: the plumbing is checked without it above."""
+    pytest.importorskip("ompl")
+    from benchmarks.methods import _rrt_star
+
+    posts = np.array([[0.3, 0.3], [0.5, 0.6], [0.7, 0.4], [0.4, 0.8], [0.75, 0.75]])
+
+    def valid(x, y):
+        return bool(np.all(np.hypot(posts[:, 0] - x, posts[:, 1] - y) > 0.08))
+
+    box = [(0.0, 0.0), (1.0, 1.0)]
+    first = _rrt_star(box, (0.05, 0.05), (0.95, 0.95), valid, 400, seed=3)
+    other = _rrt_star(box, (0.05, 0.05), (0.95, 0.95), valid, 400, seed=4)
+    again = _rrt_star(box, (0.05, 0.05), (0.95, 0.95), valid, 400, seed=3)
+    assert first is not None and other is not None
+    assert np.array_equal(first, again)
+    assert not np.array_equal(first, other)
+    assert all(valid(x, y) for x, y in first)
