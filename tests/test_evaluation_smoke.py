@@ -237,7 +237,8 @@ def test_rrt_star_follower_sends_commands_within_the_robots_rate_limit(monkeypat
     from tamp.run import run_mission
     from tests.worldgen import empty_world
 
-    monkeypatch.setattr(methods, "_rrt_star", lambda bounds, start, goal, valid, iterations, seed: np.array([start, goal]))
+    monkeypatch.setattr(methods, "_rrt_star",
+                        lambda bounds, start, goal, valid, iterations, seed: np.array([start, goal]))
     world = empty_world("simple", (0.5, 0.5))
     r = run_mission(world, "F b & F c", config=methods.BASELINE_CONFIG, record=True,
                     executive_cls=methods.RRTStarExecutive, max_time=60.0)
