@@ -95,8 +95,8 @@ def _run_one(args) -> dict:
 
 
 def _log_run(args, r: dict) -> None:
-    name, m = args[:2]
-    log(f"[eval] {name} {m}: " + (f"error {r['error']}" if "error" in r else
+    name, m, seed = args[0], args[1], args[4]
+    log(f"[eval] {name} {m}{'' if seed is None else f' (seed {seed})'}: " + (f"error {r['error']}" if "error" in r else
                                   f"completed={r['completed']} collisions={r['collisions']} "
                                   f"distance={r['distance']:.2f} planning={r['planning_time']:.2f} s "
                                   f"chatter={r['chatter']:.2f}/m (wall {r['wall']:.0f} s)"))
@@ -237,7 +237,13 @@ def draw_line_chart(series: dict, xlabel: str, ylabel: str, title: str, size=(64
 
 # ------------------------------------------------------------------------------------ run
 def run(names: Sequence[str], methods: Sequence[str], *, quick: bool = False, jobs: int = 1,
-        max_time: float = 300.0, timing: bool = True, rrt_seed: int = 1) -> dict:
+        max_time: float = 300.0, timing: bool = True, rrt_seed: int = 1, rrt_draws: int = 3) -> dict:
+    """Every method on every scenario (RRT* methods ``rrt_draws`` times, OMPL seeds ``rrt_seed``,
+    ``rrt_seed + 1``, ...; the scenario keeps the median draw, :func:`median_draw`), the oracle
+    and the clearance tours, the random set's aggregates, the targets and, with ``timing``, the
+    potential construction sweep."""
+    if rrt_draws < 1:
+        raise ValueError(f"rrt_draws must be at least 1, got {rrt_draws!r}")
     methods = list(methods)
     ompl = ompl_status()
     skipped = {}
@@ -246,15 +252,20 @@ def run(names: Sequence[str], methods: Sequence[str], *, quick: bool = False, jo
             methods.remove(m)
             skipped[m] = ompl[1]
             log(f"[eval] {m} skipped: {ompl[1]}")
-    tasks = [(n, m, quick, max_time, rrt_seed) for n in names for m in methods if m != "oracle"]
+    seeds = list(range(rrt_seed, rrt_seed + rrt_draws))
+    tasks = [(n, m, quick, max_time, k) for n in names for m in methods if m != "oracle"
+             for k in (seeds if m.startswith("RRT*") else [None])]
     t0 = time.perf_counter()
     results = isolated_map(_run_one, tasks, jobs, _log_run)
+    draws: dict[tuple, list] = {}
+    for (n, m, _, _, k), r in zip(tasks, results):
+        draws.setdefault((n, m), []).append((k, r))
     runs: dict[str, dict] = {n: {} for n in names}
-    for (n, m, *_), r in zip(tasks, results):
-        runs[n][m] = r
+    for (n, m), rs in draws.items():
+        runs[n][m] = rs[0][1] if rs[0][0] is None else median_draw(rs)
     scenarios = [_scenario_result(n, methods, quick, runs[n]) for n in names]
     result = {"command": None, "quick": quick, "methods": methods, "skipped": skipped, "ompl": ompl[1],
-              "rrt_seed": rrt_seed, "max_time": max_time,
+              "rrt_seeds": seeds, "max_time": max_time,
               "chatter_flag": CHATTER_FLAG, "scenarios": scenarios, "wall": time.perf_counter() - t0,
               "machine": machine_info()}
     result["aggregates"] = aggregate([s for s in scenarios if s["scenario"].startswith("random")], methods)
@@ -262,6 +273,25 @@ def run(names: Sequence[str], methods: Sequence[str], *, quick: bool = False, jo
     if timing:
         result["timing"] = _timing(quick)
     return result
+
+
+def median_draw(draws: Sequence[tuple]) -> dict:
+    """The run that stands for a randomised method on a scenario: of its ``draws`` (``(seed,
+    run)`` pairs), the one with the median distance, an unfinished run counting as longer than
+    every finished one (the lower median for an even count), with ``seed`` and ``draws`` (every
+    draw's seed, distance, completed, collisions) added."""
+    def key(item):
+        _, r = item
+        done = bool(r.get("completed")) and "error" not in r
+        return (not done, r.get("distance") if r.get("distance") is not None else math.inf)
+
+    order = sorted(draws, key=key)
+    seed, run = order[(len(order) - 1) // 2]
+    run = dict(run)
+    run["seed"] = seed
+    run["draws"] = [{"seed": k, "distance": r.get("distance"), "completed": bool(r.get("completed")),
+                     "collisions": r.get("collisions"), "error": r.get("error")} for k, r in draws]
+    return run
 
 
 def aggregate(scenarios: Sequence[dict], methods: Sequence[str]) -> dict:
@@ -275,6 +305,8 @@ def aggregate(scenarios: Sequence[dict], methods: Sequence[str]) -> dict:
         done = [r for r in runs if r.get("completed")]
         row = {"runs": len(runs), "completed": len(done), "success_rate": len(done) / len(runs) if runs else None,
                "collisions": sum(r.get("collisions", 0) for r in runs),
+               "draw_collisions": (sum(d.get("collisions") or 0 for r in runs for d in r["draws"])
+                                   if any(r.get("draws") for r in runs) else None),
                "flagged": sum(r.get("chatter", 0.0) > CHATTER_FLAG for r in runs),
                "planning_sum": (sum(float(r["planning_time"]) for r in runs if r.get("planning_time") is not None)
                                 if runs and m != "oracle" else None)}
@@ -323,9 +355,12 @@ def targets(result: dict) -> list[dict]:
             short.append((s["scenario"], None, f"HT {r['distance']:.2f} m, no other method completed"))
         else:
             d, m, c = best
+            spread = [x["distance"] for x in s["runs"][m].get("draws") or () if x.get("distance") is not None]
             short.append((s["scenario"], r["distance"] <= d,
                           f"HT {r['distance']:.2f} m, shortest other {m} {d:.2f} m"
-                          + (f" ({c} contact steps)" if c else "")))
+                          + (f" ({c} contact steps)" if c else "")
+                          + (f" (median of {len(spread)} draws, {min(spread):.2f}-{max(spread):.2f} m)"
+                             if len(spread) > 1 else "")))
         ratio = r.get("ratio")
         detail = "no oracle" if ratio is None else f"{ratio:.2f} x"
         d0, dh = (s.get("clearance_tours") or {}).get("0"), (s.get("clearance_tours") or {}).get(f"{CLEARANCE['HT']:g}")
@@ -412,6 +447,13 @@ def scenario_table(s: dict) -> list[str]:
             f"{r['replans']} | "
             f"{r['oscillation']:.2f} | {r['chatter']:.2f} | {'yes' if r['chatter'] > CHATTER_FLAG else 'no'} | "
             f"{r['min_clearance']:.3f} | {adapt} | {' '.join(r['visited'])} |")
+    for m, r in s["runs"].items():
+        if r.get("draws") and len(r["draws"]) > 1:
+            lines += ["", f"{m}'s draws (the row is the median one, seed {r['seed']}): " + ", ".join(
+                f"seed {d['seed']} " + ("error" if d.get("error") else f"{_f(d['distance'])} m"
+                                        + ("" if d["completed"] else " not completed")
+                                        + (f", {d['collisions']} contact steps" if d.get("collisions") else ""))
+                for d in r["draws"]) + "."]
     tours = s.get("clearance_tours")
     if tours:
         lines += ["", "Tour with every obstacle known, keeping a clearance beyond the robot radius (the oracle at "
@@ -450,7 +492,8 @@ def render_markdown(result: dict) -> str:
            f"Command: `{result.get('command') or 'python -m benchmarks.evaluation'}`; wall {result['wall']:.0f} s; "
            f"at most {result['max_time']:.0f} simulated s per mission; RRT*: "
            + (f"skipped ({result['skipped']['RRT*']})" if "RRT*" in result["skipped"] else
-              f"{result['ompl']}, seed {result.get('rrt_seed', 1)}") + ".",
+              f"{result['ompl']}; the median of {len(result.get('rrt_seeds', [1]))} draws (OMPL seeds "
+              f"{', '.join(str(k) for k in result.get('rrt_seeds', [1]))}) per scenario") + ".",
            "",
            "Planning time: wall s (initial synthesis, and total with every re-plan). Execution time: simulated s. "
            "Oscillation: sign changes of the commanded turn rate per metre (`tamp.run`). Chatter: sign flips of "
@@ -497,6 +540,11 @@ def render_markdown(result: dict) -> str:
                        f"{_f(a.get('planning_sum'), '{:.2f}')} | {mp('initial_planning_time', '{:.3f}')} | "
                        f"{mp('max_replan_time', '{:.3f}')} | "
                        f"{mp('replans', '{:.0f}')} | {mp('oscillation')} | {mp('chatter')} | {mp('min_clearance', '{:.3f}')} |")
+        for m in methods:
+            a = result["aggregates"][m]
+            if a.get("draw_collisions") is not None:
+                out += ["", f"{m}: every scenario's median draw above; contact steps over all its draws: "
+                            f"{a['draw_collisions']} (median draws: {a['collisions']})."]
         out += ["", "Per world (distance m; `x` = not completed, `!` = collision):", "",
                 "| world | " + " | ".join(methods) + " |", "|---|" + "---:|" * len(methods)]
         for s in rand:
@@ -557,13 +605,13 @@ def _strip(result: dict) -> dict:
     return r
 
 
-def _seed(text: str) -> int:
+def _at_least_one(text: str) -> int:
     try:
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
     if value < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1 (OMPL ignores a seed of 0), got {value}")
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
     return value
 
 
@@ -576,9 +624,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=list(METHODS), help="methods to run")
     parser.add_argument("--jobs", type=int, default=1, help="runs (one method on one scenario, a process each) at a time")
     parser.add_argument("--max-time", type=float, default=300.0, help="simulated seconds per mission")
-    parser.add_argument("--rrt-seed", type=_seed, default=1,
-                        help="OMPL's random seed for the RRT* methods (every query; at least 1): runs are reproducible, "
-                             "another seed shows another draw of the randomised planner")
+    parser.add_argument("--rrt-seed", type=_at_least_one, default=1,
+                        help="OMPL's first random seed for the RRT* methods (at least 1): runs are reproducible")
+    parser.add_argument("--rrt-draws", type=_at_least_one, default=3,
+                        help="runs of each RRT* method per scenario, seeds --rrt-seed, --rrt-seed + 1, ...; the "
+                             "report keeps the median draw and lists them all")
     parser.add_argument("--no-timing", action="store_true", help="skip the potential-construction timing sweep")
     parser.add_argument("--out", type=Path, default=None,
                         help="output directory (default benchmarks/results/evaluation[_quick])")
@@ -586,7 +636,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     names = ["random0", "random1"] if args.quick else list(args.shared) + [f"random{s}" for s in range(args.random)]
     out = args.out or Path("benchmarks") / "results" / ("evaluation_quick" if args.quick else "evaluation")
     result = run(names, args.methods, quick=args.quick, jobs=max(1, args.jobs), max_time=args.max_time,
-                 timing=not args.no_timing, rrt_seed=args.rrt_seed)
+                 timing=not args.no_timing, rrt_seed=args.rrt_seed, rrt_draws=args.rrt_draws)
     result["command"] = "python -m benchmarks.evaluation" + ("" if argv is None and len(sys.argv) <= 1 else " " + " ".join(
         sys.argv[1:] if argv is None else argv))
     out.mkdir(parents=True, exist_ok=True)

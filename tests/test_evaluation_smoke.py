@@ -298,3 +298,29 @@ def test_rrt_star_queries_are_reproducible():
     assert np.array_equal(first, again)
     assert not np.array_equal(first, other)
     assert all(valid(x, y) for x, y in first)
+
+
+def test_a_randomised_method_is_represented_by_its_median_draw():
+    """:func:`benchmarks.evaluation.median_draw`: the draw with the median distance (an unfinished
+    draw counts as longer than every finished one; the lower median for an even count), every
+    draw listed; the targets name the draws' range and the scenario table lists them."""
+    draws = [(1, _run(14.46, planning=40.0)), (2, _run(10.22, planning=30.0)), (3, _run(9.75, planning=35.0))]
+    r = evaluation.median_draw(draws)
+    assert (r["seed"], r["distance"], r["planning_time"]) == (2, 10.22, 30.0)
+    assert [d["seed"] for d in r["draws"]] == [1, 2, 3] and [d["distance"] for d in r["draws"]] == [14.46, 10.22, 9.75]
+    assert evaluation.median_draw([(1, _run(9.0, completed=False)), (2, _run(12.0)), (3, _run(11.0))])["seed"] == 2
+    assert evaluation.median_draw([(1, _run(9.0, completed=False)), (2, _run(12.0)), (3, {"error": "boom"})])["seed"] == 1
+    assert evaluation.median_draw([(4, _run(8.0)), (5, _run(7.0))])["seed"] == 5  # the lower median of two
+    clutter = {"scenario": "cluttered20", "n_obstacles": 20, "task": "F d1", "runs": {
+        "HT": _run(10.54, ratio=1.36), "RRT*": r,
+        "oracle": {"distance": 7.76, "completed": True, "visited": ["d1"], "orders": "all orders"}}}
+    got = {t["target"]: t for t in evaluation.targets({"scenarios": [clutter], "skipped": {}})}
+    assert got["HT's distance the smallest of the non-oracle methods on the shared worlds"]["detail"] == (
+        "`cluttered20` HT 10.54 m, shortest other RRT* 10.22 m (median of 3 draws, 9.75-14.46 m)")
+    for key in ("initial_planning_time", "execution_time", "replans", "oscillation", "min_clearance"):
+        for run in (clutter["runs"]["HT"], r):
+            run.setdefault(key, 1)
+    for run in (clutter["runs"]["HT"], r):
+        run.setdefault("visited", ["d1"])
+    text = "\n".join(evaluation.scenario_table(clutter))
+    assert "RRT*'s draws (the row is the median one, seed 2): seed 1 14.46 m, seed 2 10.22 m, seed 3 9.75 m." in text
