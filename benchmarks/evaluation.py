@@ -4,7 +4,7 @@ Run from the repository root::
 
     python -m benchmarks.evaluation [--quick] [--out DIR] [--random N]
                                     [--methods HT HT-fields OHPF NF RRT* RRT*-buffer oracle]
-                                    [--jobs N] [--max-time S] [--rrt-seed N]
+                                    [--jobs N] [--max-time S] [--rrt-seed N] [--rrt-draws K]
 
 Scenarios: the shared worlds ``office`` (its mission and its urgent ``u1`` event at 60 s) and
 ``cluttered20`` (visit ``d1 .. d4``), and the random forest worlds
@@ -16,7 +16,9 @@ and 1) and a reduced timing sweep: the CI smoke test.
 Methods (:mod:`benchmarks.methods`): ``HT``, ``HT-fields`` (HT with the paper's execution, a
 field per waypoint), ``OHPF``, ``NF``, ``RRT*`` and ``RRT*-buffer`` (RRT* keeping HT's 0.15 m
 clearance instead of 5 cm; both skipped, with the reason in the report, when OMPL's Python
-bindings do not work) and ``oracle``.
+bindings do not work) and ``oracle``. RRT* is randomised: each RRT* method runs ``--rrt-draws``
+(3) times per scenario with OMPL seeds ``--rrt-seed`` (1), 2, ... (every draw reproducible) and
+the scenario keeps the draw with the median distance (:func:`median_draw`), listing them all.
 
 Every method's run on every scenario is a process of its own, forked from the prepared parent
 (:func:`benchmarks._common.isolated_map`): no run is timed with the memos (forest results, LTL
