@@ -365,7 +365,8 @@ def targets(result: dict) -> list[dict]:
                              if len(spread) > 1 else "")))
         ratio = r.get("ratio")
         detail = "no oracle" if ratio is None else f"{ratio:.2f} x"
-        d0, dh = (s.get("clearance_tours") or {}).get("0"), (s.get("clearance_tours") or {}).get(f"{CLEARANCE['HT']:g}")
+        tours = s.get("clearance_tours") or {}
+        d0, dh = tours.get("0"), tours.get(f"{CLEARANCE['HT']:g}")
         if ratio is not None and d0 and dh:
             detail += f" (the tour keeping HT's {CLEARANCE['HT']:g} m buffer: {dh:.2f} m, {dh / d0:.2f} x)"
         within.append((s["scenario"], None if ratio is None else ratio <= 1.25, detail))
@@ -428,6 +429,11 @@ def _yes(r):
     return "yes" if r.get("completed") else f"NO ({r.get('state', '?')})"
 
 
+def _clearances(methods) -> str:
+    """``"HT 0.15 m, RRT* 0.05 m, ..."``: the nominal clearance of each of ``methods`` that has one."""
+    return ", ".join(f"{m} {c:g} m" for m, c in CLEARANCE.items() if c is not None and m in methods)
+
+
 def scenario_table(s: dict) -> list[str]:
     lines = [f"### {s['scenario']} ({s['n_obstacles']} obstacles; task `{s['task']}`)", "",
              "| method | completed | collisions | planning initial / total s | execution s | distance m | "
@@ -459,9 +465,7 @@ def scenario_table(s: dict) -> list[str]:
     tours = s.get("clearance_tours")
     if tours:
         lines += ["", "Tour with every obstacle known, keeping a clearance beyond the robot radius (the oracle at "
-                  "0; `/ own clearance` divides by the tour at the method's own: "
-                  + ", ".join(f"{m} {c:g} m" for m, c in CLEARANCE.items() if c is not None and m in s["runs"])
-                  + "): " + ", ".join(f"{c} m: {_f(v)} m" for c, v in tours.items()) + "."]
+                  "0; `/ own clearance` divides by the tour at the method's own: " + _clearances(s["runs"]) + "): " + ", ".join(f"{c} m: {_f(v)} m" for c, v in tours.items()) + "."]
     return lines + [""]
 
 
@@ -517,9 +521,7 @@ def render_markdown(result: dict) -> str:
                 "median / p90 over the completed runs. OHPF plans HT's trees (only its execution differs): "
                 "where both drive one plan their planning times are equal by construction, and the sum shows "
                 "the re-plans each execution causes. `/ own clearance`: the distance over the tour keeping the "
-                "method's own clearance ("
-                + ", ".join(f"{m} {c:g} m" for m, c in CLEARANCE.items() if c is not None and m in methods)
-                + "; HT and OHPF pass narrow passages at the fallback buffer, so theirs can fall below 1).", "",
+                "method's own clearance (" + _clearances(methods) + "; HT and OHPF pass narrow passages at the fallback buffer, so theirs can fall below 1).", "",
                 "| method | success | collisions | flagged | distance m | / oracle | / own clearance | execution s | "
                 "planning total s | planning sum s | planning initial s | max replan s | replans | oscillation /m | "
                 "chatter /m | min clearance m |",

@@ -438,27 +438,30 @@ def chatter_sources(poses, waypoints, replanned, dt: float) -> dict:
     return out
 
 
+_DEFAULTS = ExecutiveConfig()  # HT's buffers, which the clearance-matched baselines keep
+
+
 class RRTStarBufferExecutive(RRTStarExecutive):
     """:class:`RRTStarExecutive` keeping HT's clearance: the obstacles grown by the robot radius
     plus the harmonic trees' ``buffer`` (paper 001: 0.15 m) instead of 5 cm, and where no path
     keeps it, HT's ``fallback_buffer`` (0.03 m) in the last retry, as HT's trees fall back to it."""
 
-    margin = ExecutiveConfig().buffer
-    fallback_margin = ExecutiveConfig().fallback_buffer
+    margin = _DEFAULTS.buffer
+    fallback_margin = _DEFAULTS.fallback_buffer
 
 
 _CLASSES = {"OHPF": OHPFExecutive, "NF": NFExecutive, "RRT*": RRTStarExecutive, "RRT*-buffer": RRTStarBufferExecutive}
-#: the clearance (m beyond the robot radius) each method keeps from obstacles where it can, the
-#: buffer of :func:`oracle_tour`'s yardstick for it (``None``: no nominal clearance, NF's field);
-#: HT and OHPF go through narrow passages at ``fallback_buffer``, so they can undercut theirs
-CLEARANCE = {"HT": ExecutiveConfig().buffer, "HT-fields": ExecutiveConfig().buffer, "OHPF": ExecutiveConfig().buffer,
-             "NF": None, "RRT*": RRTStarExecutive.margin, "RRT*-buffer": RRTStarBufferExecutive.margin}
 #: the executive configuration of the baselines: the defaults without the route rescue and
 #: without going to look before stopping blocked, which both drive along harmonic trees (HT's
 #: execution layer; docs/executive.md), and tracking fields, not pursuing a tree's path
 BASELINE_CONFIG = ExecutiveConfig(route_rescue=False, look_tries=0, pursuit=0.0)
 #: HT with the paper's execution: every default but the pursuit of the leg
 FIELDS_CONFIG = ExecutiveConfig(pursuit=0.0)
+#: the clearance (m beyond the robot radius) each method keeps from obstacles where it can, the
+#: buffer of :func:`oracle_tour`'s yardstick for it (``None``: no nominal clearance, NF's field);
+#: HT and OHPF go through narrow passages at ``fallback_buffer``, so they can undercut theirs
+CLEARANCE = {"HT": _DEFAULTS.buffer, "HT-fields": FIELDS_CONFIG.buffer, "OHPF": BASELINE_CONFIG.buffer,
+             "NF": None, "RRT*": RRTStarExecutive.margin, "RRT*-buffer": RRTStarBufferExecutive.margin}
 
 
 def run_method(method: str, world, task=None, *, seed: int = 0, max_time: float = 300.0,
