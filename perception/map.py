@@ -691,6 +691,9 @@ class ObstacleMap:
         cfg = self.config
         valid = ~np.isnan(scan.ranges)
         L = np.where(scan.hit, scan.ranges - cfg.free_margin, scan.range_max)[valid]
+        # a beam from the pose (inside the workspace, so inside the grid) leaves the grid within
+        # its diagonal: longer beams (a lidar claiming a 1e8 m range) add no cell, only samples
+        L = np.minimum(L, cfg.free_cell * math.hypot(*self._fshape))
         ang = scan.angles[valid]
         step = cfg.free_cell / 2
         t = np.arange(step, max(float(L.max(initial=0.0)), 0.0), step)
