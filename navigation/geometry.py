@@ -41,6 +41,14 @@ from .errors import WorldError
 
 __all__ = ["Squircle", "ExactDistance", "pack", "beta_rows", "point_at_rows", "beta_jet", "ray_length_center_jet", "ray_length_jet", "ray_length_packed"]
 
+#: Smallest width or height of a squircle (m): a nanometre; below it the construction's
+#: ratios of extents underflow (a world file's 1e-300 m wide obstacle divided by zero).
+MIN_SIZE = 1e-9
+
+#: Largest coordinate, extent or radius a world file may give (m): a thousand kilometres. Finite
+#: values far beyond it (1e300) overflow the construction's squares to infinities.
+MAX_LENGTH = 1e6
+
 # Columns of a packed squircle array (see :func:`pack`).
 CX, CY, COS, SIN, HW, HH, S = range(7)
 
@@ -53,7 +61,7 @@ class Squircle:
     ----------
     center : (2,) sequence of float
     width, height : float
-        Full extents (> 0).
+        Full extents (at least :data:`MIN_SIZE`, a nanometre).
     theta : float
         Rotation in radians, counter-clockwise.
     s : float
@@ -80,7 +88,10 @@ class Squircle:
         return self._hash
 
     def __post_init__(self):
-        c = tuple(float(v) for v in np.asarray(self.center, dtype=float).reshape(-1))
+        try:
+            c = tuple(float(v) for v in np.asarray(self.center, dtype=float).reshape(-1))
+        except OverflowError:  # an integer beyond the float range
+            raise WorldError(f"squircle center must be finite, got {self.center!r}", "center") from None
         if len(c) != 2:
             raise WorldError(f"squircle center must have 2 coordinates, got {len(c)}", "center")
         object.__setattr__(self, "center", c)
@@ -90,14 +101,16 @@ class Squircle:
                 v = float(v)
             except (TypeError, ValueError):
                 raise WorldError(f"squircle {name} must be a number, got {v!r}", name) from None
+            except OverflowError:  # an integer beyond the float range
+                v = math.inf
             object.__setattr__(self, name, v)
         for name, v in (("center", c[0]), ("center", c[1]), ("width", self.width), ("height", self.height),
                         ("theta", self.theta), ("s", self.s)):
             if not math.isfinite(v):
                 raise WorldError(f"squircle {name} must be finite, got {v!r}", name)
-        if self.width <= 0 or self.height <= 0:
-            raise WorldError(f"squircle width and height must be > 0, got {self.width} x {self.height}",
-                             "width" if self.width <= 0 else "height")
+        if not (self.width >= MIN_SIZE and self.height >= MIN_SIZE):
+            raise WorldError(f"squircle width and height must be at least {MIN_SIZE:g} m, got "
+                             f"{self.width} x {self.height}", "width" if not self.width >= MIN_SIZE else "height")
         if not 0.0 <= self.s < 1.0:
             raise WorldError(f"squircle s must be in [0, 1), got {self.s}", "s")
         object.__setattr__(self, "_hash", hash((self.center, self.width, self.height, self.theta, self.s)))
@@ -122,9 +135,14 @@ class Squircle:
             if key in d and (not isinstance(d[key], (int, float)) or isinstance(d[key], bool)):
                 raise WorldError(f"{field}.{key}: expected a number, got {d[key]!r}", f"{field}.{key}")
         try:
-            return cls(tuple(center), d["width"], d["height"], d.get("theta", 0.0), d.get("s", 0.99))
+            sq = cls(tuple(center), d["width"], d["height"], d.get("theta", 0.0), d.get("s", 0.99))
         except WorldError as err:
             raise WorldError(f"{field}.{err.field}: {err}", f"{field}.{err.field}") from None
+        for key, v in (("center", max(map(abs, sq.center))), ("width", sq.width), ("height", sq.height)):
+            if not v <= MAX_LENGTH:
+                raise WorldError(f"{field}.{key}: must be at most {MAX_LENGTH:g} m in magnitude, got {d[key]!r}",
+                                 f"{field}.{key}")
+        return sq
 
     def to_dict(self) -> dict:
         return {"center": list(self.center), "width": self.width, "height": self.height,

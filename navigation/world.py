@@ -37,7 +37,7 @@ import numpy as np
 
 from .errors import WorldError
 from .forest import Forest, build_forest
-from .geometry import Squircle
+from .geometry import MAX_LENGTH, Squircle
 
 __all__ = ["World", "Region", "RobotSpec", "LidarSpec", "Event", "EventMode", "load_world", "REGION_NAME",
            "disc_violations"]
@@ -52,17 +52,23 @@ def _is_number(v) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
-def _number(v, path: str, *, positive: bool = False, nonnegative: bool = False) -> float:
-    """A finite float (optionally > 0 or >= 0); ``WorldError`` naming ``path`` otherwise."""
+def _number(v, path: str, *, positive: bool = False, nonnegative: bool = False, length: bool = False) -> float:
+    """A finite float (optionally > 0 or >= 0; a ``length`` or coordinate at most
+    :data:`navigation.geometry.MAX_LENGTH` in magnitude); ``WorldError`` naming ``path`` otherwise."""
     if not _is_number(v) and not isinstance(v, np.floating | np.integer):
         raise WorldError(f"{path}: expected a number, got {v!r}", path)
-    x = float(v)
+    try:
+        x = float(v)
+    except OverflowError:  # an integer beyond the float range
+        x = math.inf
     if not math.isfinite(x):
         raise WorldError(f"{path}: must be finite, got {v!r}", path)
     if positive and not x > 0:
         raise WorldError(f"{path}: must be > 0, got {x:g}", path)
     if nonnegative and not x >= 0:
         raise WorldError(f"{path}: must be >= 0, got {x:g}", path)
+    if length and not abs(x) <= MAX_LENGTH:
+        raise WorldError(f"{path}: must be at most {MAX_LENGTH:g} m in magnitude, got {x:g}", path)
     return x
 
 
@@ -72,7 +78,7 @@ def _point(v, path: str, n: int = 2) -> tuple[float, ...]:
     if not isinstance(v, (list, tuple)) or len(v) != n:
         form = "[x, y]" if n == 2 else "[x, y, theta]"
         raise WorldError(f"{path}: expected {form} ({n} numbers), got {v!r}", path)
-    return tuple(_number(x, f"{path}[{k}]") for k, x in enumerate(v))
+    return tuple(_number(x, f"{path}[{k}]", length=k < 2) for k, x in enumerate(v))
 
 
 def _text(v, path: str) -> str:
@@ -140,7 +146,7 @@ class Region:
             raise WorldError(f"name: region name {self.name!r} must match [a-z][a-z0-9_]* and not be "
                              f"'true' or 'false'", "name")
         object.__setattr__(self, "center", _point(self.center, "center"))
-        object.__setattr__(self, "radius", _number(self.radius, "radius", positive=True))
+        object.__setattr__(self, "radius", _number(self.radius, "radius", positive=True, length=True))
 
     def contains(self, q) -> np.ndarray:
         """True where ``q`` ((2,) or (N, 2)) lies in the closed disc."""
@@ -161,7 +167,7 @@ class RobotSpec:
     omega_max: float
 
     def __post_init__(self):
-        object.__setattr__(self, "radius", _number(self.radius, "radius", nonnegative=True))
+        object.__setattr__(self, "radius", _number(self.radius, "radius", nonnegative=True, length=True))
         start = self.start.tolist() if isinstance(self.start, np.ndarray) else self.start
         if isinstance(start, (list, tuple)) and len(start) == 2:
             start = (*start, 0.0)
@@ -185,7 +191,7 @@ class LidarSpec:
     rate_hz: float
 
     def __post_init__(self):
-        object.__setattr__(self, "range", _number(self.range, "range", positive=True))
+        object.__setattr__(self, "range", _number(self.range, "range", positive=True, length=True))
         fov = _number(self.fov, "fov", positive=True)
         if fov > 2 * math.pi + 1e-6:
             raise WorldError(f"fov: must be at most 2 pi, got {fov:g}", "fov")
@@ -324,14 +330,14 @@ class World:
                                  f"proposition) and not be 'true' or 'false'", path)
             r = _obj(r, path, ("center", "radius"))
             center = _point(r["center"], f"{path}.center")
-            radius = _number(r["radius"], f"{path}.radius", positive=True)
+            radius = _number(r["radius"], f"{path}.radius", positive=True, length=True)
             regions[key] = Region(key, center, radius)
 
         rb = _obj(d["robot"], "robot", ("radius", "start", "v_max", "omega_max"))
         start = rb["start"]
         if isinstance(start, list) and len(start) == 2:
             start = [*start, 0.0]
-        robot = RobotSpec(_number(rb["radius"], "robot.radius", nonnegative=True), _point(start, "robot.start", 3),
+        robot = RobotSpec(_number(rb["radius"], "robot.radius", nonnegative=True, length=True), _point(start, "robot.start", 3),
                           _number(rb["v_max"], "robot.v_max", positive=True),
                           _number(rb["omega_max"], "robot.omega_max", positive=True))
 

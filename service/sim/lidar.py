@@ -79,7 +79,12 @@ class LidarConfig:
     def __post_init__(self):
         for name in ("range", "fov", "noise_std", "rate_hz", "range_min"):
             x = getattr(self, name)
-            if isinstance(x, bool) or not isinstance(x, (int, float, np.integer, np.floating)) or not math.isfinite(x):
+            ok = not isinstance(x, bool) and isinstance(x, (int, float, np.integer, np.floating))
+            try:
+                ok = ok and math.isfinite(float(x))
+            except OverflowError:  # an integer beyond the float range
+                ok = False
+            if not ok:
                 raise SimulatorError(f"lidar {name}: expected a finite number, got {x!r}")
             object.__setattr__(self, name, float(x))
         if self.range <= 0 or self.rate_hz <= 0:

@@ -38,7 +38,10 @@ Pose = tuple[float, float, float]
 def _finite(x, what: str, err=SimulatorError, field_name: str | None = None) -> float:
     if isinstance(x, bool) or not isinstance(x, (int, float, np.integer, np.floating)):
         raise err(f"{what}: expected a number, got {x!r}", *([field_name] if err is CommandError else []))
-    v = float(x)
+    try:
+        v = float(x)
+    except OverflowError:  # an integer beyond the float range
+        v = math.inf
     if not math.isfinite(v):
         raise err(f"{what}: must be finite, got {x!r}", *([field_name] if err is CommandError else []))
     return v
