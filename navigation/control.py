@@ -21,7 +21,7 @@ Choices where the paper is silent or loose, and why:
   while the tracked goal is an intermediate waypoint (``beyond > 0``): a robot that passes
   such a goal a few centimetres off its axis meets the field's fast rotation near the goal,
   and the full feed-forward turns it hard towards the goal's heading just before the next
-  waypoint's field turns it back (an S-turn at every waypoint, docs/evaluation.md). A smaller
+  waypoint's field turns it back (an S-turn at every waypoint, docs/history.md, "Where the chatter comes from"). A smaller
   share lets the heading lag there; the path's end (``beyond = 0``) keeps the whole term.
 * **Heading gate on (24a).** Eq. 24a drives forward at ``k_v tanh(d)`` whatever the heading
   error; with a saturated ``omega`` the robot can then drive along its old heading into an

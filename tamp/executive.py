@@ -46,7 +46,7 @@ Choices where the paper is vague, and why
   The fields of consecutive waypoints disagree near their goals: each turns the robot towards
   its own goal heading and the next one turns it back, so eq. 24-25 weave along a straight
   leg (turn-rate sign flips 1.1-3.1 per metre on the benchmark's 13 missions; the evaluation's
-  flag is 1 per metre; docs/evaluation.md "Where the chatter comes from"). The tree's path is
+  flag is 1 per metre; docs/history.md "Where the chatter comes from"). The tree's path is
   a polyline whose segments the roadmap joined at the buffer, so the executive pursues it:
   eq. 24 (heading gate, saturation, the braking-aware safety limit on the forest's grown
   obstacles, rate limit; :func:`navigation.control.track_point`) on the bearing of the point
