@@ -266,21 +266,26 @@ Bdd.false = Bdd(0)
 def from_minterms(letters: Iterable[int], nvars: int) -> Bdd:
     """The guard true exactly at the valuations ``letters`` (masks over ``nvars`` APs).
 
-    Built by Shannon expansion of the truth table (variable 0 on top), so it costs
-    ``O(2^nvars)``; meant for the small alphabets of missions (``nvars <= 12``).
+    Built by Shannon expansion over the letters themselves (variable 0 on top): a branch with
+    no letter is ``false``, one with every valuation of its remaining variables ``true``, so
+    it costs ``O(len(letters) * nvars)`` (a few letters over many APs, as the exclusive
+    alphabets of :func:`tamp.ltl.to_buchi`, stay cheap).
     """
     size = 1 << nvars
-    table = bytearray(size)
+    ms = set()
     for m in letters:
         if not 0 <= m < size:
             raise ValueError(f"letter {m} is not a valuation of {nvars} APs")
-        table[m] = 1
+        ms.add(m)
 
-    def build(offset: int, stride: int, var: int) -> int:
-        if var == nvars:
-            return 1 if table[offset] else 0
-        lo = build(offset, stride * 2, var + 1)
-        hi = build(offset + stride, stride * 2, var + 1)
+    def build(sub: list[int], var: int) -> int:
+        if not sub:
+            return 0
+        if len(sub) == 1 << (nvars - var):
+            return 1  # (distinct letters) every valuation of variables var..nvars-1
+        bit = 1 << var
+        lo = build([m for m in sub if not m & bit], var + 1)
+        hi = build([m for m in sub if m & bit], var + 1)
         return _mk(var, lo, hi)
 
-    return Bdd(build(0, 1, 0))
+    return Bdd(build(list(ms), 0))
