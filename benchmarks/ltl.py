@@ -18,6 +18,12 @@ caches):
   the size of the product part reachable from the start;
 * ``replan``: after one random edge-cost change (fixed seed; a random region pair gets a new
   cost, a fresh change each repeat), :meth:`MissionPlanner.replan` from the start state.
+* ``scaling``: missions over ``n`` regions, visiting all of them (``F r0 & ... & F r{n-1}``,
+  whose minimal automaton has ``2^n`` states) and patrolling all of them (``G F r0 & ...``):
+  the translation the planner runs (``exclusive=True``: one region at a time, ``n + 1``
+  letters), the full-alphabet translation (``2^n`` letters; up to ``n = 8``, it took about a
+  minute at 10), and ``MissionPlanner`` with its first plan on an obstacle-free world with the
+  ``n`` regions on a grid. One run each, fresh proposition names (no memo reused).
 
 Targets (issue 3): office mission translation <= 50 ms; product plus lasso plan for the office
 map <= 100 ms; re-planning after a cost change <= 20 ms. Results go to ``<out>/ltl.json`` and
@@ -151,12 +157,58 @@ def bench_planning(settings: dict, world_name: str, seed: int = 0) -> dict:
     return res
 
 
+SCALING_SIZES = (4, 6, 8, 10, 12)
+SCALING_FULL_MAX = 8  # the full alphabet beyond: 59 s at n = 10 before the exclusive one
+
+
+def _grid_world(names: Sequence[str], task: str):
+    regions = {r: {"center": [0.8 + 1.2 * (i % 6), 0.8 + 1.5 * (i // 6)], "radius": 0.2}
+               for i, r in enumerate(names)}
+    return navigation.World.from_dict({
+        "name": "grid", "workspace": {"center": [4.0, 2.5], "width": 8.0, "height": 5.0, "theta": 0.0, "s": 0.99},
+        "obstacles": [], "regions": regions,
+        "robot": {"radius": 0.1, "start": [0.3, 0.3, 0.0], "v_max": 0.5, "omega_max": 1.5},
+        "lidar": {"range": 1.0, "fov": 6.283185, "beams": 360, "noise_std": 0.0, "rate_hz": 10}, "task": task})
+
+
+def bench_scaling(sizes: Sequence[int] = SCALING_SIZES) -> list[dict]:
+    rows = []
+    for n in sizes:
+        for kind, op in (("visit all", "F"), ("patrol all", "G F")):
+            def mission(tag: str) -> tuple[list[str], str]:
+                names = [f"{tag}{n}r{i}" for i in range(n)]
+                return names, " & ".join(f"{op} {r}" for r in names)
+
+            names, text = mission("x")
+            t0 = time.perf_counter()
+            b = to_buchi(parse(text), exclusive=True)
+            t_excl = time.perf_counter() - t0
+            t_full = full_states = None
+            if n <= SCALING_FULL_MAX:
+                _, text_f = mission("f")
+                t0 = time.perf_counter()
+                full_states = to_buchi(parse(text_f)).num_states
+                t_full = time.perf_counter() - t0
+            names_p, text_p = mission("p")
+            world = _grid_world(names_p, text_p)
+            t0 = time.perf_counter()
+            MissionPlanner(world, world.task).plan()
+            t_plan = time.perf_counter() - t0
+            rows.append({"mission": kind, "regions": n, "states": b.num_states, "edges": b.num_edges,
+                         "translate_exclusive": t_excl, "translate_full": t_full, "full_states": full_states,
+                         "planner": t_plan})
+            log(f"[bench] scaling {kind} n={n}: {b.num_states} states, exclusive {1e3 * t_excl:.1f} ms, "
+                f"full {'-' if t_full is None else f'{1e3 * t_full:.1f} ms'}, planner {1e3 * t_plan:.1f} ms")
+    return rows
+
+
 def run(*, quick: bool = False, world: str = "office") -> dict:
     """Run the benchmarks and return the JSON-ready result."""
     settings = QUICK if quick else FULL
     office_task = navigation.load_world(world).task
     translation = bench_translation(settings, office_task)
     planning = bench_planning(settings, world)
+    scaling = bench_scaling(SCALING_SIZES[:3] if quick else SCALING_SIZES)
     office_row = translation[-1]
     measured = {"translate": office_row["median"], "plan": planning["plan"], "replan": planning["replan"]}
     return {
@@ -171,6 +223,7 @@ def run(*, quick: bool = False, world: str = "office") -> dict:
         "units": "seconds",
         "translation": translation,
         "planning": planning,
+        "scaling": scaling,
     }
 
 
@@ -232,6 +285,22 @@ def render_markdown(result: dict) -> str:
         f"{' '.join(pl['initial_plan']['suffix'])}, cost {pl['initial_plan']['cost']:.3f}.",
         "",
     ]
+    if result.get("scaling"):
+        lines += [
+            "## Missions over n regions",
+            "",
+            "One run each. *exclusive*: the translation the planner runs (one region at a time, "
+            "n + 1 letters); *full*: every one of the 2^n letters (not run beyond "
+            f"{SCALING_FULL_MAX} regions); *planner*: `MissionPlanner(world, task).plan()` on an "
+            "obstacle-free world with the regions on a grid, translation included.",
+            "",
+            "| mission | regions | states | edges | exclusive (ms) | full (ms) | planner (ms) |",
+            "|---|---:|---:|---:|---:|---:|---:|",
+        ]
+        for r in result["scaling"]:
+            lines.append(f"| {r['mission']} | {r['regions']} | {r['states']} | {r['edges']} "
+                         f"| {_ms(r['translate_exclusive'])} | {_ms(r['translate_full'])} | {_ms(r['planner'])} |")
+        lines.append("")
     return "\n".join(lines)
 
 

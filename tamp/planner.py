@@ -695,13 +695,16 @@ class MissionPlanner:
             unknown = aps - set(known)
             if unknown:
                 raise UnknownRegionError(unknown, known)
-            buchi = translate.to_buchi(f)
+            # regions are disjoint discs: one region at a time (translate.py, step 0), which
+            # keeps visiting n regions polynomial in the alphabet instead of 2^n letters
+            buchi = translate.to_buchi(f, exclusive=True)
         unknown = aps - set(known)
         if unknown:
             raise UnknownRegionError(unknown, known)
         letters = ops.singleton_letters(buchi, known)
         if not buchi.accepting:
-            raise UnsatisfiableError(text, "its automaton has no accepting state")
+            raise UnsatisfiableError(text, "its automaton has no accepting state" if isinstance(formula, Buchi)
+                                     else "no run visiting one region at a time is accepted (regions are disjoint)")
         if ops.is_empty(buchi, letters):
             raise UnsatisfiableError(text, "no run visiting one region at a time is accepted "
                                            "(regions are disjoint)")

@@ -70,6 +70,17 @@ def test_stats_line_on_stderr():
     assert lines[0].endswith(" ms")
 
 
+def test_exclusive_prints_the_planners_automaton(capsys):
+    """``--exclusive``: at most one proposition at a time, the automaton ``MissionPlanner`` uses
+    (no edge reads ``{a, b}``; visiting two regions takes the four subset states)."""
+    assert cli.main(["--exclusive", "F a & F b"]) == 0
+    b = from_hoa(capsys.readouterr().out)
+    assert b.num_states == 4
+    both = b.mask(["a", "b"])
+    assert not any(e.guard.holds(both) for out in b.edges for e in out)
+    assert all(any(e.guard.holds(b.mask([r])) for e in b.edges[b.initial]) for r in ("a", "b"))
+
+
 @pytest.mark.parametrize("formula,column", [("a &", 4), ("a -> -> b", 6), ("(a | b", 1),
                                             ("a b", 3), ("", 1), ("a $ b", 3)])
 def test_bad_formulas_in_process(formula, column, capsys):
@@ -81,7 +92,7 @@ def test_bad_formulas_in_process(formula, column, capsys):
 
 
 def test_other_product_errors_exit_2_without_traceback(monkeypatch, capsys):
-    def refuse(formula):
+    def refuse(formula, **options):
         raise UnsatisfiableError(str(formula))
 
     monkeypatch.setattr(cli, "to_buchi", refuse)
@@ -96,7 +107,7 @@ def test_help_documents_every_option(capsys):
         cli.main(["--help"])
     assert info.value.code == 0
     out = capsys.readouterr().out
-    assert "formula" in out and "--stats" in out and "HOA" in out
+    assert "formula" in out and "--stats" in out and "--exclusive" in out and "HOA" in out
 
 
 def test_missing_formula_is_a_usage_error(capsys):

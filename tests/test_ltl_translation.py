@@ -21,7 +21,7 @@ from tamp.ltl.semantics import accepts, evaluate
 from tamp.ltl.syntax import parse
 
 from .conftest import world_file
-from .ltlgen import format_word, formula_sample, word_sample
+from .ltlgen import APS, format_word, formula_sample, word_sample
 
 SEED = 2024
 WORDS = 50
@@ -67,6 +67,71 @@ def test_random_formulas_agree_with_the_oracle(start):
 @pytest.mark.parametrize("start", range(0, SLOW_FORMULAS, SLOW_CHUNK))
 def test_random_formulas_agree_with_the_oracle_full(start):
     _check_sample(start, SLOW_CHUNK)
+
+
+# ------------------------------------------------------------- exclusive propositions
+EXCLUSIVE_FORMULAS = 1000
+
+
+def _exclusive_words(k: int, count: int):
+    """Lasso words whose letters hold at most one proposition (one region at a time)."""
+    import random
+
+    rng = random.Random(f"exclusive-words-{SEED}-{k}")
+
+    def letter():
+        r = rng.randrange(len(APS) + 1)
+        return frozenset() if r == len(APS) else frozenset({APS[r]})
+
+    return [([letter() for _ in range(rng.randint(0, 5))], [letter() for _ in range(rng.randint(1, 5))])
+            for _ in range(count)]
+
+
+@pytest.mark.parametrize("start", range(0, EXCLUSIVE_FORMULAS, CHUNK))
+def test_exclusive_automata_agree_with_the_oracle_on_one_proposition_at_a_time(start):
+    """``to_buchi(f, exclusive=True)`` accepts a word whose letters hold at most one
+    proposition exactly when it satisfies ``f``, and has no edge for any other letter."""
+    from itertools import combinations
+
+    mismatches = []
+    for k, f in formula_sample(SEED, start, CHUNK):
+        aut = to_buchi(f, exclusive=True)
+        n = len(aut.aps)
+        multi = [sum(1 << i for i in c) for r in range(2, n + 1) for c in combinations(range(n), r)]
+        assert not any(e.guard.holds(m) for out in aut.edges for e in out for m in multi), (k, str(f))
+        for u, v in _exclusive_words(k, WORDS):
+            if accepts(aut, u, v) != evaluate(f, u, v):
+                mismatches.append(f"  formula {k}: {f}\n    word: {format_word(u, v)}")
+    assert not mismatches, f"{len(mismatches)} disagree:\n" + "\n".join(mismatches[:10])
+
+
+def test_visiting_ten_regions_one_at_a_time_is_the_subset_automaton():
+    """The mission that made the full alphabet exponential (``2^10`` letters, about a minute):
+    its exclusive automaton is the minimal one, a state per set of visited regions."""
+    names = [f"r{i}" for i in range(10)]
+    aut = to_buchi(" & ".join(f"F {r}" for r in names), exclusive=True)
+    assert aut.num_states == 1 << 10
+    tour = [frozenset({r}) for r in names]
+    assert accepts(aut, tour[::-1], [frozenset()])
+    assert not accepts(aut, tour[1:] * 3, [frozenset()] + tour[1:])  # r0 never visited
+
+
+def test_guards_from_minterms_hold_exactly_at_their_letters():
+    import random
+
+    from tamp.ltl.bdd import from_minterms
+
+    rng = random.Random(5)
+    for nvars in (0, 1, 3, 6):
+        for _ in range(30):
+            letters = {m for m in range(1 << nvars) if rng.random() < rng.random()}
+            g = from_minterms(letters, nvars)
+            assert all(g.holds(m) == (m in letters) for m in range(1 << nvars))
+            assert g.is_false == (not letters)
+    assert from_minterms(range(1 << 5), 5).is_true
+    assert from_minterms([0, 1, 2, 4, 8, 1 << 20], 21).holds(1 << 20)
+    with pytest.raises(ValueError):
+        from_minterms([8], 3)
 
 
 # ---------------------------------------------------------------------- mission patterns

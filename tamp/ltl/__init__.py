@@ -19,9 +19,9 @@ from .automaton import Buchi, Edge
 from .bdd import Bdd
 from .formula import Formula
 from .syntax import parse, to_string
-from .translate import to_buchi
+from .translate import exclusive_letters, to_buchi
 
-__all__ = ["Formula", "parse", "to_string", "to_buchi", "Buchi", "Edge", "Bdd"]
+__all__ = ["Formula", "parse", "to_string", "to_buchi", "exclusive_letters", "Buchi", "Edge", "Bdd"]
 
 try:  # pieces delivered in parallel; exported once present
     from .hoa import from_hoa, to_hoa  # noqa: F401

@@ -24,6 +24,7 @@ formula syntax (FORMATS.md): region names [a-z][a-z0-9_]*, true, false, ! X F G 
 & | -> <-> U R W M, parentheses. Precedence from loosest: <->, ->, |, &, U R W M, unary.
 examples: python -m tamp.ltl "G F a & G !b"
           python -m tamp.ltl --stats "F(a & F b)" > mission.hoa
+          python -m tamp.ltl --exclusive --stats "F a & F b & F c & F d & F e & F f & F g & F h"
 No environment variable is read."""
 
 
@@ -46,6 +47,13 @@ def _parser() -> argparse.ArgumentParser:
         help="also print a one-line summary on stderr: states, edges, accepting states and "
         "translation time in ms",
     )
+    p.add_argument(
+        "--exclusive",
+        action="store_true",
+        help="at most one proposition holds at a time (a world's regions are disjoint discs): "
+        "the automaton the mission planner uses, with no edge for a letter of two or more "
+        "propositions; linear instead of exponential in the number of propositions' letters",
+    )
     return p
 
 
@@ -60,7 +68,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         formula = parse(args.formula)
         t0 = time.perf_counter()
-        buchi = to_buchi(formula)
+        buchi = to_buchi(formula, exclusive=args.exclusive)
         elapsed_ms = (time.perf_counter() - t0) * 1e3
         text = to_hoa(buchi)
     except HarmonicTampError as err:

@@ -2,6 +2,13 @@
 
 Pipeline (each step is an established construction):
 
+0. **Alphabet.** By default every letter (set of true propositions) counts. With
+   ``exclusive=True`` only the letters in which at most one proposition holds do (a robot is
+   in at most one of a world's disjoint region discs): every tableau guard is intersected with
+   them, so the terms that need two propositions at once vanish as they are built, and the
+   subset construction of step 3 runs over ``n + 1`` letters instead of ``2^n``. The result
+   is the automaton of the formula's words over that alphabet (no edge reads another letter),
+   all the product of paper 001 section 4.1.1 reads.
 1. **Rewrite** the formula to simplified negation normal form (:mod:`tamp.ltl.rewrite`).
 2. **Tableau** (Couvreur 1999, "On-the-fly verification of LTL formulae"; the LTL2TGBA
    construction of Spot). A state is a set of NNF obligations (kept as one simplified
@@ -20,7 +27,7 @@ Pipeline (each step is an established construction):
    result is a deterministic Büchi automaton (an accepting ``true`` sink for co-safe
    formulas, all states accepting for safe ones). Mission patterns (visits, sequences,
    transport, avoidance) fall in these classes and get their minimal deterministic automaton.
-   Used when the formula has at most :data:`EXPLICIT_ALPHABET_MAX_APS` propositions.
+   Used when the alphabet has at most ``2^``:data:`EXPLICIT_ALPHABET_MAX_APS` letters.
 4. Otherwise **SCC-aware degeneralization**: acceptance marks are cleaned per strongly
    connected component of the TGBA (an SCC that misses some set is rejecting, sets present on
    every internal transition are dropped, an SCC whose every transition carries every set is
@@ -48,7 +55,7 @@ from .formula import FALSE, TRUE, Formula
 from .rewrite import MEMO_SIZE, implies, is_cosafe, is_safe, negate, simplify, sort_key
 from .syntax import FormulaLike, parse
 
-__all__ = ["to_buchi", "EXPLICIT_ALPHABET_MAX_APS"]
+__all__ = ["to_buchi", "exclusive_letters", "EXPLICIT_ALPHABET_MAX_APS"]
 
 EXPLICIT_ALPHABET_MAX_APS = 10
 
@@ -58,8 +65,9 @@ _Term = tuple  # (guard: Bdd, next: Formula, promises: frozenset[Formula])
 class _Tableau:
     """Expansion of NNF obligations into guarded terms (step 2 of the module docstring)."""
 
-    def __init__(self, ap_index: dict[str, int]):
+    def __init__(self, ap_index: dict[str, int], alphabet: Bdd = Bdd.true):
         self.ap_index = ap_index
+        self.alphabet = alphabet  # the letters the automaton must be right on (step 0)
         self._memo: dict[Formula, list[_Term]] = {}
 
     def expand(self, f: Formula) -> list[_Term]:
@@ -103,6 +111,8 @@ class _Tableau:
             out = self._product(self.expand(f.args[0]), [(Bdd.true, f, frozenset())])
         else:  # pragma: no cover - NNF has no other operators
             raise ValueError(f"operator {op!r} is not in negation normal form")
+        if self.alphabet is not Bdd.true:
+            out = [(g & self.alphabet, n, p) for g, n, p in out]
         out = _reduce_terms(out)
         self._memo[f] = out
         return out
@@ -352,10 +362,11 @@ def _explore(tab: _Tableau, init: Formula):
     return states, edges
 
 
-def _obligation_automaton(tab: _Tableau, init: Formula, nvars: int, cosafe: bool) -> _Nba:
-    """Minimal DBA of a co-safe or safe formula via subset construction (step 3)."""
+def _obligation_automaton(tab: _Tableau, init: Formula, nvars: int, cosafe: bool,
+                          letters: Sequence[int]) -> _Nba:
+    """Minimal DBA of a co-safe or safe formula via subset construction over ``letters``
+    (step 3)."""
     states, edges = _explore(tab, init)
-    letters = range(1 << nvars)
     # successor sets per tableau state and letter
     step = []
     for out in edges:
@@ -375,11 +386,11 @@ def _obligation_automaton(tab: _Tableau, init: Formula, nvars: int, cosafe: bool
     while k < len(order):
         S = order[k]
         row = []
-        for m in letters:
+        for li in range(len(letters)):
             if S is SINK:
                 T = SINK
             else:
-                T = frozenset().union(*(step[s][m] for s in S)) if S else frozenset()
+                T = frozenset().union(*(step[s][li] for s in S)) if S else frozenset()
                 if cosafe and T & accept_tab:
                     T = SINK
             if not T:
@@ -489,7 +500,13 @@ def _degeneralized_automaton(tab: _Tableau, init: Formula) -> _Nba:
     return nba
 
 
-def to_buchi(formula: FormulaLike, aps: Sequence[str] | None = None) -> Buchi:
+def exclusive_letters(n: int) -> tuple[int, ...]:
+    """The letters over ``n`` propositions in which at most one holds: the empty letter, then
+    ``{p_0}``, ..., ``{p_{n-1}}`` (as masks)."""
+    return (0,) + tuple(1 << i for i in range(n))
+
+
+def to_buchi(formula: FormulaLike, aps: Sequence[str] | None = None, *, exclusive: bool = False) -> Buchi:
     """Translate an LTL formula into a state-based Büchi automaton.
 
     Parameters
@@ -500,6 +517,12 @@ def to_buchi(formula: FormulaLike, aps: Sequence[str] | None = None) -> Buchi:
         Atomic propositions of the automaton, in order (e.g. every region name of a world).
         Must contain every proposition of the formula. Default: the formula's propositions
         in order of first appearance.
+    exclusive : bool
+        At most one proposition holds at a time (the regions of a world are disjoint discs):
+        the automaton accepts exactly the words over those letters that satisfy ``formula``
+        and has no edge for a letter with two or more propositions (step 0 of the module
+        docstring). Linear instead of exponential in the alphabet: visiting 10 regions in any
+        order translates in milliseconds instead of about a minute.
 
     Returns
     -------
@@ -532,9 +555,10 @@ def to_buchi(formula: FormulaLike, aps: Sequence[str] | None = None) -> Buchi:
             raise ValueError(f"aps {aps} miss the formula's propositions {missing}")
     ap_index = {a: i for i, a in enumerate(aps)}
     g = simplify(f)
-    tab = _Tableau(ap_index)
-    if (is_cosafe(g) or is_safe(g)) and len(aps) <= EXPLICIT_ALPHABET_MAX_APS:
-        nba = _obligation_automaton(tab, g, len(aps), cosafe=is_cosafe(g))
+    letters = exclusive_letters(len(aps)) if exclusive else range(1 << len(aps))
+    tab = _Tableau(ap_index, from_minterms(letters, len(aps)) if exclusive else Bdd.true)
+    if (is_cosafe(g) or is_safe(g)) and len(letters) <= 1 << EXPLICIT_ALPHABET_MAX_APS:
+        nba = _obligation_automaton(tab, g, len(aps), cosafe=is_cosafe(g), letters=letters)
     else:
         nba = _degeneralized_automaton(tab, g)
     nba = _prune(nba)
