@@ -186,7 +186,7 @@ Choices where the paper is vague, and why
   on that tick). On ``random8`` the re-plan ticks over 20 ms went from 6 to 0 and, with
   perception's budget for pending refits, the tick CPU p95 from 21.3 to 14.7 ms. On the
   benchmark's 63 missions (``--random 60``) the tick target is met on 63 instead of 60, for
-  1.6 % more mission time at the same distance (docs/executive.md, "Forty-fourth session").
+  1.6 % more mission time at the same distance (docs/history.md, executive "Forty-fourth session").
 * **Legs from a region** (not in the paper; :data:`VIA_CENTRE_SLACK`, 0.2 m; forty-fourth
   session). The navigation map's cost of a transition is the tree between the two regions'
   centres, but the robot leaves a region from where it entered the disc, up to its radius
@@ -227,7 +227,7 @@ Choices where the paper is vague, and why
   fallback's passages and run through unexplored space: ``random42`` 1.08 -> 1.21 x,
   ``random53`` (jittered) 1.09 -> 1.26 x. Over ``python -m benchmarks.executive --random 60
   --jitter 4 --jobs 2`` it gives 290 of 315 runs within 1.25 x against 291, 1978.1 against
-  1964.8 m (docs/executive.md, thirty-first session), so it is off by default.
+  1964.8 m (docs/history.md, executive, thirty-first session), so it is off by default.
   *Probe* (opt-in, ``probe_ratio``): a leg from the robot whose fallback tree is
   ``seen_detour_ratio`` times cheaper but unseen goes and looks when the saving exceeds
   ``probe_ratio`` times the way until the passage's first narrow point is within lidar range
@@ -287,7 +287,7 @@ Choices where the paper is vague, and why
   ``v_cap`` (:func:`navigation.control.track`), a target the rate limit brakes towards at
   ``accel_max`` before ``v`` enters eq. 24b's feed-forward; the robot slows down before a
   waypoint it must turn sharply onto instead of circling past it (it was off in that mode
-  before, docs/executive.md, twenty-ninth session).
+  before, docs/history.md, executive, twenty-ninth session).
 * **Known obstacles** (``known_obstacles`` in the world file, or all with ``known=True``) are
   used as given; lidar returns on them are dropped before perception (a NaN range: no return
   and no free-space evidence). When the known obstacles grown by the robot radius are not a
@@ -517,7 +517,7 @@ class ExecutiveConfig:
         of the lidar's range noise (``perception.PerceptionConfig.noise_std``): a single scan's
         returns scatter about the surface, and a hold that one scan asks for, the next scan's
         draw may release (``--sweep 100:200 --noise 0.05``: 10 contact steps with 0, none with
-        1; docs/executive.md, fortieth session). No effect without noise.
+        1; docs/history.md, executive, fortieth session). No effect without noise.
     guard_horizon : float
         Seconds of motion the guard checks (a control period at 10 Hz).
     crawl_guard : navigation.CrawlConfig or None

@@ -152,7 +152,7 @@ def test_a_mission_with_a_noisy_lidar_completes_safely(name, sigma):
 @pytest.mark.parametrize("seed", [s for s in range(100, 160) if s != 103])
 def test_a_mission_with_a_noisy_lidar_completes_safely_full(seed):
     # (random103 with 1 cm noise stops blocked: its only way to r1 is a passage 5 cm wider than
-    # the robot that the noisy estimates close; docs/executive.md "Thirty-fifth session")
+    # the robot that the noisy estimates close; docs/history.md, executive "Thirty-fifth session")
     _check_noisy(*_random_mission(seed), 0.01)
 
 
