@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .errors import PointsError
 
-__all__ = ["as_points", "restore"]
+__all__ = ["as_points", "restore", "to_float", "to_floats"]
 
 
 def as_points(x, name: str = "q", *, finite: bool = True) -> tuple[np.ndarray, bool]:
@@ -35,3 +37,26 @@ def as_points(x, name: str = "q", *, finite: bool = True) -> tuple[np.ndarray, b
 def restore(result: np.ndarray, single: bool) -> np.ndarray:
     """Undo the promotion of :func:`as_points` on a per-point result."""
     return result[0] if single else result
+
+
+def to_float(v) -> float:
+    """``float(v)``, with an integer beyond the float range (JSON may write ``1e400`` out as
+    digits) as the infinity of its sign instead of an ``OverflowError``; callers that need a
+    finite number then refuse it as non-finite."""
+    try:
+        return float(v)
+    except OverflowError:
+        return math.inf if v > 0 else -math.inf
+
+
+def to_floats(seq) -> np.ndarray:
+    """``np.array(seq, dtype=float)`` with integers beyond the float range (also in nested
+    lists) as infinities (:func:`to_float`); ``TypeError``/``ValueError`` as numpy raises them."""
+    try:
+        return np.array(seq, dtype=float)
+    except OverflowError:
+        def conv(v):
+            if isinstance(v, (list, tuple)):
+                return [conv(u) for u in v]
+            return to_float(v) if isinstance(v, int) and not isinstance(v, bool) else v
+        return np.array(conv(list(seq)), dtype=float)

@@ -35,7 +35,7 @@ import numpy as np
 from scipy.special import ellipe, ellipk
 
 from . import _geom_kernel
-from ._arrays import as_points, restore
+from ._arrays import as_points, restore, to_float, to_floats
 from ._jet import Jet
 from .errors import WorldError
 
@@ -88,21 +88,16 @@ class Squircle:
         return self._hash
 
     def __post_init__(self):
-        try:
-            c = tuple(float(v) for v in np.asarray(self.center, dtype=float).reshape(-1))
-        except OverflowError:  # an integer beyond the float range
-            raise WorldError(f"squircle center must be finite, got {self.center!r}", "center") from None
+        c = tuple(float(v) for v in to_floats(self.center).reshape(-1))
         if len(c) != 2:
             raise WorldError(f"squircle center must have 2 coordinates, got {len(c)}", "center")
         object.__setattr__(self, "center", c)
         for name in ("width", "height", "theta", "s"):
             v = getattr(self, name)
             try:
-                v = float(v)
+                v = to_float(v)
             except (TypeError, ValueError):
                 raise WorldError(f"squircle {name} must be a number, got {v!r}", name) from None
-            except OverflowError:  # an integer beyond the float range
-                v = math.inf
             object.__setattr__(self, name, v)
         for name, v in (("center", c[0]), ("center", c[1]), ("width", self.width), ("height", self.height),
                         ("theta", self.theta), ("s", self.s)):

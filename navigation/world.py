@@ -35,6 +35,7 @@ from enum import Enum
 
 import numpy as np
 
+from ._arrays import to_float
 from .errors import WorldError
 from .forest import Forest, build_forest
 from .geometry import MAX_LENGTH, Squircle
@@ -57,10 +58,7 @@ def _number(v, path: str, *, positive: bool = False, nonnegative: bool = False, 
     :data:`navigation.geometry.MAX_LENGTH` in magnitude); ``WorldError`` naming ``path`` otherwise."""
     if not _is_number(v) and not isinstance(v, np.floating | np.integer):
         raise WorldError(f"{path}: expected a number, got {v!r}", path)
-    try:
-        x = float(v)
-    except OverflowError:  # an integer beyond the float range
-        x = math.inf
+    x = to_float(v)
     if not math.isfinite(x):
         raise WorldError(f"{path}: must be finite, got {v!r}", path)
     if positive and not x > 0:

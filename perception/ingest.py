@@ -24,6 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from navigation._arrays import to_float, to_floats
+
 from .errors import ScanError
 
 __all__ = ["Scan", "Pose", "parse_pose", "parse_scan", "parse_points", "as_message", "decode_object"]
@@ -97,35 +99,13 @@ def as_message(msg, kind: str) -> Mapping:
     return decode_object(msg, lambda reason: ScanError(f"{kind} message {reason}"))
 
 
-def _float(v) -> float:
-    """``float(v)``, with an integer beyond the float range (JSON allows ``1e400`` written out
-    as digits) as the infinity of its sign instead of an ``OverflowError``."""
-    try:
-        return float(v)
-    except OverflowError:
-        return math.inf if v > 0 else -math.inf
-
-
-def _floats(seq) -> np.ndarray:
-    """``seq`` (numbers, ``None`` as NaN, nested lists) as a float array; integers beyond the
-    float range as infinities (:func:`_float`). ``TypeError``/``ValueError`` as numpy raises."""
-    try:
-        return np.array(seq, dtype=float)
-    except OverflowError:
-        def conv(v):
-            if isinstance(v, (list, tuple)):
-                return [conv(u) for u in v]
-            return _float(v) if isinstance(v, int) and not isinstance(v, bool) else v
-        return np.array(conv(list(seq)), dtype=float)
-
-
 def _number(msg: Mapping, key: str, kind: str) -> float:
     if key not in msg:
         raise ScanError(f"{kind}.{key}: missing field", key)
     v = msg[key]
     if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)):
         raise ScanError(f"{kind}.{key}: expected a number, got {v!r}", key)
-    x = _float(v)
+    x = to_float(v)
     if not math.isfinite(x):
         raise ScanError(f"{kind}.{key}: must be finite, got {v!r}", key)
     return x
@@ -144,7 +124,7 @@ def parse_pose(pose) -> tuple[float | None, Pose]:
         stamp = _number(m, "stamp", "pose")
         return stamp, (_number(m, "x", "pose"), _number(m, "y", "pose"), _number(m, "theta", "pose"))
     try:
-        arr = _floats(pose).reshape(-1)
+        arr = to_floats(pose).reshape(-1)
     except (TypeError, ValueError):
         raise ScanError(f"pose: expected (x, y, theta) or a pose message, got {pose!r}", "pose") from None
     if arr.shape != (3,):
@@ -192,7 +172,7 @@ def parse_scan(msg, pose, *, beams: int | None = None) -> Scan:
     if beams is not None and len(raw) != beams:
         raise ScanError(f"scan.ranges: expected {beams} beams (the lidar's), got {len(raw)}", "ranges")
     try:
-        r = _floats([np.nan if v is None else v for v in raw] if not isinstance(raw, np.ndarray) else raw).reshape(-1)
+        r = to_floats([np.nan if v is None else v for v in raw] if not isinstance(raw, np.ndarray) else raw).reshape(-1)
     except (TypeError, ValueError):
         bad = next((v for v in raw if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)))), "?")
         raise ScanError(f"scan.ranges: expected numbers, got {bad!r}", "ranges") from None
@@ -227,7 +207,7 @@ def parse_points(msg) -> tuple[float, np.ndarray, int]:
     if len(raw) == 0:
         return stamp, np.zeros((0, 2)), 0
     try:
-        pts = _floats(raw)
+        pts = to_floats(raw)
     except (TypeError, ValueError):
         raise ScanError("points.points: expected a list of [x, y] number pairs", "points") from None
     if pts.ndim != 2 or pts.shape[1] != 2:

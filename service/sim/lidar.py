@@ -37,6 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from navigation._arrays import to_float
 from navigation.geometry import Squircle, beta_rows, pack, ray_length_packed
 from navigation.world import LidarSpec
 
@@ -79,12 +80,8 @@ class LidarConfig:
     def __post_init__(self):
         for name in ("range", "fov", "noise_std", "rate_hz", "range_min"):
             x = getattr(self, name)
-            ok = not isinstance(x, bool) and isinstance(x, (int, float, np.integer, np.floating))
-            try:
-                ok = ok and math.isfinite(float(x))
-            except OverflowError:  # an integer beyond the float range
-                ok = False
-            if not ok:
+            if (isinstance(x, bool) or not isinstance(x, (int, float, np.integer, np.floating))
+                    or not math.isfinite(to_float(x))):
                 raise SimulatorError(f"lidar {name}: expected a finite number, got {x!r}")
             object.__setattr__(self, name, float(x))
         if self.range <= 0 or self.rate_hz <= 0:

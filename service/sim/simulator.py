@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from navigation._arrays import to_float
 from navigation.world import World, load_world
 from perception.ingest import decode_object
 
@@ -38,10 +39,7 @@ Pose = tuple[float, float, float]
 def _finite(x, what: str, err=SimulatorError, field_name: str | None = None) -> float:
     if isinstance(x, bool) or not isinstance(x, (int, float, np.integer, np.floating)):
         raise err(f"{what}: expected a number, got {x!r}", *([field_name] if err is CommandError else []))
-    try:
-        v = float(x)
-    except OverflowError:  # an integer beyond the float range
-        v = math.inf
+    v = to_float(x)
     if not math.isfinite(v):
         raise err(f"{what}: must be finite, got {x!r}", *([field_name] if err is CommandError else []))
     return v
