@@ -52,7 +52,7 @@ def _parser() -> argparse.ArgumentParser:
         action="store_true",
         help="at most one proposition holds at a time (a world's regions are disjoint discs): "
         "the automaton the mission planner uses, with no edge for a letter of two or more "
-        "propositions; linear instead of exponential in the number of propositions' letters",
+        "propositions (n + 1 letters instead of 2^n)",
     )
     return p
 

@@ -521,8 +521,8 @@ def to_buchi(formula: FormulaLike, aps: Sequence[str] | None = None, *, exclusiv
         At most one proposition holds at a time (the regions of a world are disjoint discs):
         the automaton accepts exactly the words over those letters that satisfy ``formula``
         and has no edge for a letter with two or more propositions (step 0 of the module
-        docstring). Linear instead of exponential in the alphabet: visiting 10 regions in any
-        order translates in milliseconds instead of about a minute.
+        docstring). ``n + 1`` letters instead of ``2^n``: visiting 10 regions in any order
+        translates in about half a second instead of about a minute.
 
     Returns
     -------
