@@ -253,6 +253,17 @@ def _count(text: str) -> int:
     return v
 
 
+def _at_most(limit: int):
+    """A non-negative integer up to ``limit`` (argparse type)."""
+    def parse(text: str) -> int:
+        v = _count(text)
+        if v > limit:
+            raise argparse.ArgumentTypeError(f"must be at most {limit}, got {v}")
+        return v
+    parse.__name__ = f"integer in [0, {limit}]"
+    return parse
+
+
 def _finite(text: str) -> float:
     v = float(text)
     if not math.isfinite(v):
@@ -317,20 +328,20 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--out", type=_png, default="nf.png", metavar="PATH", help="output PNG file")
     parser.add_argument("--size", type=_size, default=640, metavar="PX",
                         help="image size along the workspace's longer side, in pixels")
-    parser.add_argument("--starts", type=_count, default=10, metavar="N",
-                        help="number of descent trajectories from random free starts")
-    parser.add_argument("--seed", type=int, default=0, metavar="S",
-                        help="seed of the random start positions")
-    parser.add_argument("--max-steps", type=_count, default=500, metavar="K",
+    parser.add_argument("--starts", type=_at_most(10_000), default=10, metavar="N",
+                        help="number of descent trajectories from random free starts (at most 10000)")
+    parser.add_argument("--seed", type=_count, default=0, metavar="S",
+                        help="seed of the random start positions (>= 0)")
+    parser.add_argument("--max-steps", type=_at_most(1_000_000), default=500, metavar="K",
                         help="step limit of each descent (a step is at most 1%% of the workspace's "
-                             "larger extent)")
+                             "larger extent; at most 1000000)")
     parser.add_argument("--scale", default=Scale.LINEAR.value, choices=[m.value for m in Scale],
                         help="colour scale: 'linear' shows phi_NF/mu, 'logit' shows the harmonic "
                              "potential ln(u/(1-u)), u = phi_NF/mu, stretched over its 1st-99th "
                              "percentiles")
-    parser.add_argument("--levels", type=_count, default=20, metavar="L",
+    parser.add_argument("--levels", type=_at_most(1000), default=20, metavar="L",
                         help="number of equal bands of the colour scale separated by contour lines "
-                             "(0: none)")
+                             "(0: none; at most 1000)")
     return parser
 
 
