@@ -55,6 +55,17 @@ def _positive(text: str) -> float:
     return v
 
 
+def seed_arg(text: str) -> int:
+    """An ``argparse`` type: a non-negative integer seed (numpy refuses negative ones)."""
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0, got {text!r}")
+    return v
+
+
 def _common(p: argparse.ArgumentParser, *, default_world: str | None) -> None:
     p.add_argument("--world", default=default_world,
                    help="world file (FORMATS.md) or built-in name (simple, office, cluttered20)")
@@ -117,7 +128,7 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--speed", type=_positive, default=1.0,
                    help="simulation speed-up (simulated s per wall s), at most: the simulator waits for the "
                         "service's answer to each pose, never running slower than real time")
-    d.add_argument("--seed", type=int, default=0, help="lidar noise seed of the simulator")
+    d.add_argument("--seed", type=seed_arg, default=0, help="lidar noise seed of the simulator (>= 0)")
     d.add_argument("--json", action="store_true", help="print the summary as one JSON object on stdout")
     d.add_argument("--keep-going", action="store_true",
                    help="run until --duration even after the mission completes (a recurrent mission "
@@ -280,6 +291,7 @@ def _cmd_demo(a) -> int:
             node.restart_watchdog()
             node.run(a.duration + 30.0, until=progress)  # paced: real time at worst
             time.sleep(min(0.5, 2.0 / a.speed))  # let the simulator's last metrics arrive
+            sim_rc = sim.poll()  # None: still running (stopped below), as it should be
         finally:
             stop_child(sim)
             sub.undeclare()
@@ -336,6 +348,10 @@ def _cmd_demo(a) -> int:
                  f"max {f(out['telemetry']['field_max_ms'], '.1f')} ms, "
                  f"{f(out['telemetry']['field_ms_per_tick'], '.2f')} ms per tick"
                  if "telemetry" in out else ""))
+    if sim_rc not in (None, 0):
+        print(f"error: the simulator process exited with status {sim_rc} (its error is above)",
+              file=sys.stderr)
+        return 2
     return 0
 
 

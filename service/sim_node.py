@@ -50,6 +50,7 @@ import zenoh
 
 from perception.ingest import decode_object
 
+from .cli import seed_arg
 from .errors import ServiceError
 from .messages import encode
 from .node import zenoh_config
@@ -210,7 +211,7 @@ def main(argv=None) -> int:
     p.add_argument("--listen", action="append", default=None, help="Zenoh endpoint to listen on (repeatable)")
     p.add_argument("--zenoh-config", default=None, help="Zenoh JSON5 configuration file")
     p.add_argument("--speed", type=float, default=1.0, help="simulated seconds per wall second")
-    p.add_argument("--seed", type=int, default=0, help="lidar noise seed")
+    p.add_argument("--seed", type=seed_arg, default=0, help="lidar noise seed (>= 0)")
     p.add_argument("--points", action="store_true", help="publish 'points' instead of 'scan'")
     p.add_argument("--duration", type=float, default=None, help="stop after this many simulated seconds")
     a = p.parse_args(argv)

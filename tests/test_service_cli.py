@@ -86,7 +86,7 @@ def test_fields_tracks_each_waypoints_field_instead_of_pursuing_the_path():
 
 
 @pytest.mark.parametrize("argv, needle", [
-    (["run", "--accel-max", "-1"], "--accel-max"),
+    (["run", "--accel-max", "-1"], "--accel-max"), (["demo", "--seed", "-1"], "--seed"),
     (["run", "--rate", "0"], "--rate"), (["demo", "--speed", "fast"], "--speed"), (["jump"], "invalid choice"),
     (["run"], "--world"), (["run", "--world", "no/such/world.json"], "no/such"),
     (["run", "--world", "simple", "--task", "F (a"], "parse_error"),

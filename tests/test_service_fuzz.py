@@ -186,6 +186,17 @@ def test_mutated_world_files_load_or_are_refused_with_a_world_error():
         assert np.isfinite(nf.value(np.array([[1.0, 0.5]]))).all()
 
 
+def test_a_negative_simulator_seed_is_a_simulator_error():
+    from service.sim.errors import SimulatorError
+
+    world = navigation.load_world(world_file("simple"))
+    for seed in (-1, 1.5, "0", True):
+        with pytest.raises(SimulatorError, match="seed"):
+            Simulator(world, seed=seed)
+    Simulator(world, seed=np.random.default_rng(3))
+    Simulator(world, seed=None)
+
+
 def test_beam_angles_that_overflow_are_refused_not_nan_returns():
     with pytest.raises(MessageError, match="angle_increment.*overflow"):
         m.parse_scan(json.dumps(dict(SCAN, angle_min=1e308, angle_increment=1e308)).encode())

@@ -199,6 +199,9 @@ class Simulator:
         self.world = world
         self.config = cfg
         self.lidar = lidar or LidarConfig.from_spec(world.lidar)
+        if not (seed is None or isinstance(seed, np.random.Generator)
+                or (isinstance(seed, (int, np.integer)) and not isinstance(seed, bool) and seed >= 0)):
+            raise SimulatorError(f"seed must be None, a numpy Generator or an integer >= 0, got {seed!r}")
         self.rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
         self._clear = ClearanceMap(world.workspace, world.obstacles, world.robot.radius, cfg.boundary_spacing)
         self._rays = RayCaster(world.workspace, world.obstacles)
