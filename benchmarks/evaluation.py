@@ -55,6 +55,7 @@ import numpy as np
 
 from benchmarks._common import isolated_map, log, machine_info, write_results
 from benchmarks.methods import ADAPTATION, CLEARANCE, METHODS, ompl_status, oracle_tour, run_method
+from service.cli import int_at_least
 
 __all__ = ["main", "run", "scenario", "render_markdown", "chatter_table", "targets", "CHATTER_FLAG", "SHARED"]
 
@@ -609,16 +610,6 @@ def _strip(result: dict) -> dict:
     return r
 
 
-def _at_least_one(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
-    return value
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks.evaluation", description=__doc__.split("\n\n")[0],
                                      formatter_class=argparse.ArgumentDefaultsHelpFormatter)
@@ -628,9 +619,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=list(METHODS), help="methods to run")
     parser.add_argument("--jobs", type=int, default=1, help="runs (one method on one scenario, a process each) at a time")
     parser.add_argument("--max-time", type=float, default=300.0, help="simulated seconds per mission")
-    parser.add_argument("--rrt-seed", type=_at_least_one, default=1,
+    parser.add_argument("--rrt-seed", type=int_at_least(1), default=1,
                         help="OMPL's first random seed for the RRT* methods (at least 1): runs are reproducible")
-    parser.add_argument("--rrt-draws", type=_at_least_one, default=3,
+    parser.add_argument("--rrt-draws", type=int_at_least(1), default=3,
                         help="runs of each RRT* method per scenario, seeds --rrt-seed, --rrt-seed + 1, ...; the "
                              "report keeps the median draw and lists them all")
     parser.add_argument("--no-timing", action="store_true", help="skip the potential-construction timing sweep")

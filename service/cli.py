@@ -55,15 +55,22 @@ def _positive(text: str) -> float:
     return v
 
 
-def seed_arg(text: str) -> int:
-    """An ``argparse`` type: a non-negative integer seed (numpy refuses negative ones)."""
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"must be >= 0, got {text!r}")
-    return v
+def int_at_least(minimum: int):
+    """An ``argparse`` type: an integer ``>= minimum`` (one error line naming the value)."""
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+        if v < minimum:
+            raise argparse.ArgumentTypeError(f"must be >= {minimum}, got {text!r}")
+        return v
+    parse.__name__ = f"integer >= {minimum}"
+    return parse
+
+
+#: A lidar noise seed: numpy refuses negative ones.
+seed_arg = int_at_least(0)
 
 
 def _common(p: argparse.ArgumentParser, *, default_world: str | None) -> None:
