@@ -4,9 +4,10 @@ Public names
 ------------
 ``parse(text)`` / ``str(formula)``
     FORMATS.md syntax to :class:`Formula` and back (:mod:`tamp.ltl.syntax`).
-``to_buchi(formula)``
+``to_buchi(formula, aps=None, *, exclusive=False)`` / ``exclusive_letters(n)``
     Pure-Python translation to a state-based Büchi automaton :class:`Buchi`
-    (:mod:`tamp.ltl.translate`).
+    (:mod:`tamp.ltl.translate`); ``exclusive=True`` reads only letters with at most one true
+    proposition (disjoint regions).
 ``to_hoa(buchi)`` / ``from_hoa(text)``
     HOA v1 output and input (:mod:`tamp.ltl.hoa`).
 ``evaluate(formula, prefix, cycle)`` / ``accepts(buchi, prefix, cycle)``
@@ -18,20 +19,22 @@ Public names
 from .automaton import Buchi, Edge
 from .bdd import Bdd
 from .formula import Formula
+from .hoa import from_hoa, to_hoa
+from .semantics import accepts, evaluate
 from .syntax import parse, to_string
 from .translate import exclusive_letters, to_buchi
 
-__all__ = ["Formula", "parse", "to_string", "to_buchi", "exclusive_letters", "Buchi", "Edge", "Bdd"]
-
-try:  # pieces delivered in parallel; exported once present
-    from .hoa import from_hoa, to_hoa  # noqa: F401
-
-    __all__ += ["to_hoa", "from_hoa"]
-except ImportError:  # pragma: no cover
-    pass
-try:
-    from .semantics import accepts, evaluate  # noqa: F401
-
-    __all__ += ["evaluate", "accepts"]
-except ImportError:  # pragma: no cover
-    pass
+__all__ = [
+    "Formula",
+    "parse",
+    "to_string",
+    "to_buchi",
+    "exclusive_letters",
+    "Buchi",
+    "Edge",
+    "Bdd",
+    "to_hoa",
+    "from_hoa",
+    "evaluate",
+    "accepts",
+]
