@@ -50,6 +50,7 @@ from pathlib import Path
 import numpy as np
 
 import navigation
+from navigation._argtypes import integer, number
 from navigation.control import RATE_LIMITED, UNLIMITED, ControllerConfig, track
 from navigation.tracker import CrawlConfig, Tracker
 from navigation.oriented import OrientedField, wrap_angle
@@ -254,10 +255,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                                      formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     parser.add_argument("--quick", action="store_true", help="simple world, two runs (smoke test)")
     parser.add_argument("--out", type=Path, default=Path("benchmarks") / "results", help="directory of control.{json,md}")
-    parser.add_argument("--starts", type=int, default=10, help="start poses per goal")
-    parser.add_argument("--goals", type=int, default=2, help="goal poses per world")
-    parser.add_argument("--random", type=int, default=5, help="random worlds (seeds 0..N-1)")
-    parser.add_argument("--jobs", type=int, default=1, help="worker processes (one world per task)")
+    parser.add_argument("--starts", type=integer(1), default=10, help="start poses per goal")
+    parser.add_argument("--goals", type=integer(1), default=2, help="goal poses per world")
+    parser.add_argument("--random", type=integer(0), default=5, help="random worlds (seeds 0..N-1)")
+    parser.add_argument("--jobs", type=integer(1), default=1, help="worker processes (one world per task)")
     parser.add_argument("--push-forward", action="store_true",
                         help="track the push-forward direction (ControllerConfig(push_forward=True))")
     parser.add_argument("--unlimited", action="store_true",
@@ -265,19 +266,15 @@ def main(argv: Sequence[str] | None = None) -> int:
                              "brake_share 1: navigation.control.UNLIMITED)")
     parser.add_argument("--rate-limited", action="store_true",
                         help="the controller's default rate-limited mode (kept for old command lines; no effect)")
-    parser.add_argument("--standoff", type=float, default=None,
+    parser.add_argument("--standoff", type=number(0.0), default=None,
                         help="ControllerConfig.standoff in m (0 turns the stand-off off; default: the config's)")
-    parser.add_argument("--relax", type=float, default=None,
+    parser.add_argument("--relax", type=number(0.0), default=None,
                         help="ControllerConfig.relax (0: track Upsilon itself; default: the config's)")
     parser.add_argument("--no-crawl-guard", action="store_true",
                         help="drive with navigation.track alone (no crawl guard, navigation.tracker)")
     parser.add_argument("--no-route", action="store_true",
                         help="the crawl guard without its route rescue (tamp.routes.TreeRoutes)")
     args = parser.parse_args(argv)
-    if args.starts < 1 or args.goals < 1 or args.random < 0 or args.jobs < 1:
-        parser.error("--starts, --goals and --jobs must be >= 1 and --random >= 0")
-    if args.relax is not None and not args.relax >= 0:
-        parser.error("--relax must be >= 0")
     result = run(quick=args.quick, starts=args.starts, goals=args.goals, n_random=args.random, jobs=args.jobs,
                  push_forward=args.push_forward, standoff=args.standoff, crawl_guard=not args.no_crawl_guard,
                  unlimited=args.unlimited, relax=args.relax, route=not args.no_route)

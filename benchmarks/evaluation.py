@@ -55,7 +55,7 @@ import numpy as np
 
 from benchmarks._common import isolated_map, log, machine_info, write_results
 from benchmarks.methods import ADAPTATION, CLEARANCE, METHODS, ompl_status, oracle_tour, run_method
-from service.cli import int_at_least
+from navigation._argtypes import integer, positive
 
 __all__ = ["main", "run", "scenario", "render_markdown", "chatter_table", "targets", "CHATTER_FLAG", "SHARED"]
 
@@ -614,14 +614,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks.evaluation", description=__doc__.split("\n\n")[0],
                                      formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     parser.add_argument("--quick", action="store_true", help="two small random worlds, reduced timing sweep (CI smoke)")
-    parser.add_argument("--random", type=int, default=20, help="random forest worlds (seeds 0 .. N-1)")
+    parser.add_argument("--random", type=integer(0), default=20, help="random forest worlds (seeds 0 .. N-1)")
     parser.add_argument("--shared", nargs="*", default=list(SHARED), help="shared worlds to run")
     parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=list(METHODS), help="methods to run")
-    parser.add_argument("--jobs", type=int, default=1, help="runs (one method on one scenario, a process each) at a time")
-    parser.add_argument("--max-time", type=float, default=300.0, help="simulated seconds per mission")
-    parser.add_argument("--rrt-seed", type=int_at_least(1), default=1,
+    parser.add_argument("--jobs", type=integer(1), default=1, help="runs (one method on one scenario, a process each) at a time")
+    parser.add_argument("--max-time", type=positive, default=300.0, help="simulated seconds per mission")
+    parser.add_argument("--rrt-seed", type=integer(1), default=1,
                         help="OMPL's first random seed for the RRT* methods (at least 1): runs are reproducible")
-    parser.add_argument("--rrt-draws", type=int_at_least(1), default=3,
+    parser.add_argument("--rrt-draws", type=integer(1), default=3,
                         help="runs of each RRT* method per scenario, seeds --rrt-seed, --rrt-seed + 1, ...; the "
                              "report keeps the median draw and lists them all")
     parser.add_argument("--no-timing", action="store_true", help="skip the potential-construction timing sweep")
@@ -630,7 +630,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     names = ["random0", "random1"] if args.quick else list(args.shared) + [f"random{s}" for s in range(args.random)]
     out = args.out or Path("benchmarks") / "results" / ("evaluation_quick" if args.quick else "evaluation")
-    result = run(names, args.methods, quick=args.quick, jobs=max(1, args.jobs), max_time=args.max_time,
+    result = run(names, args.methods, quick=args.quick, jobs=args.jobs, max_time=args.max_time,
                  timing=not args.no_timing, rrt_seed=args.rrt_seed, rrt_draws=args.rrt_draws)
     result["command"] = "python -m benchmarks.evaluation" + ("" if argv is None and len(sys.argv) <= 1 else " " + " ".join(
         sys.argv[1:] if argv is None else argv))

@@ -78,6 +78,7 @@ from pathlib import Path
 import numpy as np
 
 import navigation
+from navigation._argtypes import integer, number, positive
 from benchmarks._common import isolated_map, log, machine_info, write_results
 from tamp.harmonic_tree import NoTreePathError, RotationWeights, plan_tree
 from tamp.roadmap import Roadmap, RoadmapConfig
@@ -422,25 +423,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks.executive", description=__doc__.split("\n\n")[0],
                                      formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     parser.add_argument("--quick", action="store_true", help="simple world only (smoke test)")
-    parser.add_argument("--random", type=int, default=10, help="random forest worlds (seeds 0 .. N-1)")
-    parser.add_argument("--max-time", type=float, default=300.0, help="simulated seconds per mission")
+    parser.add_argument("--random", type=integer(0), default=10, help="random forest worlds (seeds 0 .. N-1)")
+    parser.add_argument("--max-time", type=positive, default=300.0, help="simulated seconds per mission")
     parser.add_argument("--out", type=Path, default=Path("benchmarks") / "results", help="output directory")
-    parser.add_argument("--repeat", type=int, default=3,
+    parser.add_argument("--repeat", type=integer(1), default=3,
                         help="timed runs of every nominal mission; the timings reported are their medians")
-    parser.add_argument("--jitter", type=int, default=0, help="extra runs per world from perturbed start poses")
-    parser.add_argument("--jobs", type=int, default=1, help="processes for the jittered runs")
+    parser.add_argument("--jitter", type=integer(0), default=0, help="extra runs per world from perturbed start poses")
+    parser.add_argument("--jobs", type=integer(1), default=1, help="processes for the jittered runs")
     parser.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                         help="ExecutiveConfig override (VALUE in JSON), repeatable")
     parser.add_argument("--sweep", metavar="A:B", help="instead: robustness sweep over random worlds A .. B-1")
     parser.add_argument("--patrol", action="store_true", help="with --sweep: recurrent missions (G F every region)")
-    parser.add_argument("--noise", type=float, default=None, metavar="SIGMA",
+    parser.add_argument("--noise", type=number(0.0, 0.1), default=None, metavar="SIGMA",
                         help="lidar range noise (standard deviation, m) for every mission instead of the world's "
                              "own (0 in every world here)")
     args = parser.parse_args(argv)
-    if args.jitter < 0 or args.jobs < 1 or args.repeat < 1:
-        parser.error("--jitter must be >= 0, --jobs >= 1 and --repeat >= 1")
-    if args.noise is not None and not (math.isfinite(args.noise) and 0 <= args.noise <= 0.1):
-        parser.error(f"--noise must be a number of metres in [0, 0.1], got {args.noise!r}")
     if args.patrol and args.sweep is None:
         parser.error("--patrol goes with --sweep A:B")
     sweep = None

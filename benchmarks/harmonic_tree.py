@@ -37,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 import navigation
+from navigation._argtypes import integer
 from benchmarks._common import log, machine_info, write_results
 from tamp.harmonic_tree import NoTreePathError, plan_tree, revise_trees
 from navigation.forest import clear_cache
@@ -193,10 +194,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="simple world, one repeat (smoke test)")
     parser.add_argument("--out", type=Path, default=Path("benchmarks") / "results",
                         help="directory of harmonic_tree.{json,md}")
-    parser.add_argument("--repeats", type=int, default=3, help="repeats of the static measurements")
+    parser.add_argument("--repeats", type=integer(1), default=3, help="repeats of the static measurements")
     args = parser.parse_args(argv)
-    if args.repeats < 1:
-        parser.error("--repeats must be >= 1")
     result = run(quick=args.quick, repeats=args.repeats)
     write_results(args.out, "harmonic_tree", result, render_markdown(result))
     return 0

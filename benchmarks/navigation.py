@@ -50,6 +50,7 @@ from pathlib import Path
 import numpy as np
 
 import navigation
+from navigation._argtypes import integer
 from navigation import NavigationFunction, build_forest
 from navigation.forest import clear_cache
 from navigation import potential
@@ -247,7 +248,7 @@ def main(argv: Sequence[str] | None = None, *, sizes: Sequence[int] | None = Non
     parser.add_argument("--quick", action="store_true", help="few repeats and points (smoke test)")
     parser.add_argument("--out", type=Path, default=Path("benchmarks") / "results",
                         help="directory of navigation.json and navigation.md")
-    parser.add_argument("--sizes", type=int, nargs="*", default=list(SIZES),
+    parser.add_argument("--sizes", type=integer(1), nargs="*", default=list(SIZES),
                         help="obstacle counts of the random worlds")
     parser.add_argument("--shared", nargs="*", default=list(SHARED), help="shared worlds to include")
     args = parser.parse_args(argv)

@@ -33,6 +33,7 @@ import numpy as np
 
 from benchmarks._common import log, machine_info, write_results
 from navigation import ForestError, NavigationFunction, build_forest
+from navigation._argtypes import integer
 from navigation.forest import clear_cache
 from navigation.online import OnlineWorld
 from tests.worldgen import random_forest_world
@@ -118,7 +119,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m benchmarks.online", description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="two obstacles per world, sizes 5 and 10 (smoke test)")
     ap.add_argument("--out", type=Path, default=Path("benchmarks/results"), help="output directory")
-    ap.add_argument("--sizes", type=int, nargs="+", default=None, help="obstacle counts (default 5 10 20 50 100)")
+    ap.add_argument("--sizes", type=integer(1), nargs="+", default=None, help="obstacle counts (default 5 10 20 50 100)")
     args = ap.parse_args(argv)
     sizes = args.sizes or ((5, 10) if args.quick else SIZES)
     result = run(quick=args.quick, sizes=sizes)

@@ -52,6 +52,7 @@ from pathlib import Path
 import numpy as np
 
 import navigation
+from navigation._argtypes import integer, number
 from benchmarks._common import _prepare, load_average, log, machine_info, verdict, write_results
 from perception import ObstacleMap
 from perception.evaluation import drive, score, tour
@@ -263,11 +264,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=Path("benchmarks") / "results",
                         help="directory of perception.json and perception.md")
     parser.add_argument("--worlds", nargs="*", default=list(WORLDS), help="shared worlds to drive through")
-    parser.add_argument("--noise", type=float, nargs="*", default=[0.0, 0.01], help="range noise levels (m)")
-    parser.add_argument("--goals", type=int, default=None, help=f"legs of the drive (default {FULL['goals']})")
+    parser.add_argument("--noise", type=number(0.0), nargs="*", default=[0.0, 0.01], help="range noise levels (m)")
+    parser.add_argument("--goals", type=integer(1), default=None, help=f"legs of the drive (default {FULL['goals']})")
     parser.add_argument("--drives", default=None, metavar="SEEDS",
                         help="run the slow test's drives through these random worlds instead ('30-59', '0-29,60-89')")
-    parser.add_argument("--jobs", type=int, default=1, help="processes for --drives")
+    parser.add_argument("--jobs", type=integer(1), default=1, help="processes for --drives")
     args = parser.parse_args(argv)
     if args.drives is not None:
         from tests.test_perception_map import _seeds

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import socket
 import subprocess
@@ -32,6 +33,7 @@ import numpy as np
 import zenoh
 
 import navigation
+from navigation._argtypes import positive
 from service.cli import stop_child
 from service.node import zenoh_config
 from service.sim import Simulator
@@ -136,20 +138,28 @@ def table(rows) -> str:
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(prog="python -m benchmarks.service", description=__doc__.split("\n\n")[0])
-    p.add_argument("--seconds", type=float, default=30.0, help="wall seconds per case")
+    p.add_argument("--seconds", type=positive, default=30.0, help="wall seconds per case")
     p.add_argument("--world", default="cluttered20", help="world (20 obstacles by default)")
     p.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results", help="output directory")
     p.add_argument("--cases", default="10rec,10,50", help="comma-separated RATE[rec] cases")
     a = p.parse_args(argv)
+    cases = []
+    for case in a.cases.split(","):
+        rec = case.endswith("rec")
+        try:
+            rate = float(case[:-3] if rec else case)
+        except ValueError:
+            rate = math.nan
+        if not (math.isfinite(rate) and rate > 0):
+            p.error(f"--cases: expected RATE or RATErec with a rate > 0 Hz, got {case!r}")
+        cases.append((rate, rec))
     from tamp.run import prepare
 
     # compile the kernels into numba's on-disk cache here, so that the service processes load
     # them instead of compiling for up to about a minute (first run on a machine) before they come up
     log(f"[bench] service: kernels ready in {prepare():.1f} s")
     rows = []
-    for case in a.cases.split(","):
-        rec = case.endswith("rec")
-        rate = float(case[:-3] if rec else case)
+    for rate, rec in cases:
         log(f"[bench] service: {a.world} at {rate:g} Hz{' with a recording' if rec else ''}, {a.seconds:g} s")
         rows.append(run_case(a.world, rate, a.seconds, rec))
     write_results(a.out, "service", {"machine": machine_info(), "rows": rows}, table(rows))

@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 
 import navigation
+from navigation._argtypes import positive
 from benchmarks._common import log, machine_info, write_results
 
 __all__ = ["main", "run", "render_markdown"]
@@ -143,8 +144,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                                      formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     parser.add_argument("--world", default="office", help="world file or built-in name")
     parser.add_argument("--task", default=None, help="LTL mission (default: a patrol of the world's regions)")
-    parser.add_argument("--duration", type=float, default=3600.0, help="simulated seconds")
-    parser.add_argument("--window", type=float, default=300.0, help="simulated seconds per row")
+    parser.add_argument("--duration", type=positive, default=3600.0, help="simulated seconds")
+    parser.add_argument("--window", type=positive, default=300.0, help="simulated seconds per row")
     parser.add_argument("--out", type=Path, default=Path("benchmarks") / "results", help="output directory")
     parser.add_argument("--quick", action="store_true", help="simple world, 120 s (smoke test)")
     a = parser.parse_args(argv)

@@ -17,7 +17,6 @@ call of ``nf.value`` and one of ``nf.is_free``.
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 import time
 from dataclasses import dataclass
@@ -28,6 +27,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from ._argtypes import integer, number, seed
 from .descent import descend_many
 from .errors import HarmonicTampError, OutsideFreeSpaceError, WorldError
 
@@ -246,55 +246,10 @@ def render(nf, world, *, size: int = 640, starts: int = 10, seed: int = 0, level
 
 
 # ---------------------------------------------------------------------------------------- CLI
-def _count(text: str) -> int:
-    v = int(text)
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"must be >= 0, got {v}")
-    return v
-
-
-def _at_most(limit: int):
-    """A non-negative integer up to ``limit`` (argparse type)."""
-    def parse(text: str) -> int:
-        v = _count(text)
-        if v > limit:
-            raise argparse.ArgumentTypeError(f"must be at most {limit}, got {v}")
-        return v
-    parse.__name__ = f"integer in [0, {limit}]"
-    return parse
-
-
-def _finite(text: str) -> float:
-    v = float(text)
-    if not math.isfinite(v):
-        raise argparse.ArgumentTypeError(f"must be a finite number, got {text}")
-    return v
-
-
-def _length(text: str) -> float:
-    v = _finite(text)
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"must be >= 0, got {v:g}")
-    return v
-
-
-def _size(text: str) -> int:
-    v = int(text)
-    if not 32 <= v <= 8000:
-        raise argparse.ArgumentTypeError(f"must be between 32 and 8000 pixels, got {v}")
-    return v
-
-
 def _png(text: str) -> Path:
     if not text.lower().endswith(".png"):
         raise argparse.ArgumentTypeError(f"must name a .png file, got {text!r}")
     return Path(text)
-
-
-_count.__name__ = "non-negative integer"
-_finite.__name__ = "number"
-_length.__name__ = "non-negative number"
-_size.__name__ = "pixel count"
 
 
 class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
@@ -319,27 +274,27 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("world", nargs="?", default="office",
                         help="world file (FORMATS.md JSON), or the bare name of a built-in world")
     target = parser.add_mutually_exclusive_group()
-    target.add_argument("--goal", nargs=2, type=_finite, metavar=("X", "Y"),
+    target.add_argument("--goal", nargs=2, type=number(), metavar=("X", "Y"),
                         help="goal position in metres (default: centre of the world's first region)")
     target.add_argument("--region", metavar="NAME",
                         help="use the centre of this region as the goal")
-    parser.add_argument("--inflation", type=_length, default=0.0, metavar="R",
+    parser.add_argument("--inflation", type=number(0.0), default=0.0, metavar="R",
                         help="grow every obstacle by R metres (e.g. the robot radius)")
     parser.add_argument("--out", type=_png, default="nf.png", metavar="PATH", help="output PNG file")
-    parser.add_argument("--size", type=_size, default=640, metavar="PX",
+    parser.add_argument("--size", type=integer(32, 8000), default=640, metavar="PX",
                         help="image size along the workspace's longer side, in pixels")
-    parser.add_argument("--starts", type=_at_most(10_000), default=10, metavar="N",
+    parser.add_argument("--starts", type=integer(0, 10_000), default=10, metavar="N",
                         help="number of descent trajectories from random free starts (at most 10000)")
-    parser.add_argument("--seed", type=_count, default=0, metavar="S",
+    parser.add_argument("--seed", type=seed, default=0, metavar="S",
                         help="seed of the random start positions (>= 0)")
-    parser.add_argument("--max-steps", type=_at_most(1_000_000), default=500, metavar="K",
+    parser.add_argument("--max-steps", type=integer(0, 1_000_000), default=500, metavar="K",
                         help="step limit of each descent (a step is at most 1%% of the workspace's "
                              "larger extent; at most 1000000)")
     parser.add_argument("--scale", default=Scale.LINEAR.value, choices=[m.value for m in Scale],
                         help="colour scale: 'linear' shows phi_NF/mu, 'logit' shows the harmonic "
                              "potential ln(u/(1-u)), u = phi_NF/mu, stretched over its 1st-99th "
                              "percentiles")
-    parser.add_argument("--levels", type=_at_most(1000), default=20, metavar="L",
+    parser.add_argument("--levels", type=integer(0, 1000), default=20, metavar="L",
                         help="number of equal bands of the colour scale separated by contour lines "
                              "(0: none; at most 1000)")
     return parser

@@ -29,6 +29,8 @@ import time
 from collections import deque
 from pathlib import Path
 
+from navigation._argtypes import positive, seed
+
 __all__ = ["main", "build_parser", "stop_child"]
 
 EPILOG = """environment:
@@ -43,34 +45,6 @@ task (queryable); alive (liveliness token). See docs/service.md.
 class _Parser(argparse.ArgumentParser):
     def error(self, message):  # one line, exit 2 (the project's CLI contract)
         self.exit(2, f"error: {message}\n")
-
-
-def _positive(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not (v > 0 and v != float("inf")):
-        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text!r}")
-    return v
-
-
-def int_at_least(minimum: int):
-    """An ``argparse`` type: an integer ``>= minimum`` (one error line naming the value)."""
-    def parse(text: str) -> int:
-        try:
-            v = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-        if v < minimum:
-            raise argparse.ArgumentTypeError(f"must be >= {minimum}, got {text!r}")
-        return v
-    parse.__name__ = f"integer >= {minimum}"
-    return parse
-
-
-#: A lidar noise seed: numpy refuses negative ones.
-seed_arg = int_at_least(0)
 
 
 def _common(p: argparse.ArgumentParser, *, default_world: str | None) -> None:
@@ -92,14 +66,14 @@ def _common(p: argparse.ArgumentParser, *, default_world: str | None) -> None:
     p.add_argument("--viewer", default=None, metavar="ADDR",
                    help="stream to a Rerun viewer over gRPC (HOST:PORT or a rerun+http:// URL), "
                         "e.g. one started with 'rerun --bind 127.0.0.1 --port 9876'")
-    p.add_argument("--rate", type=_positive, default=10.0, help="control rate (Hz, simulated time for demo)")
-    p.add_argument("--watchdog", type=_positive, default=1.0,
+    p.add_argument("--rate", type=positive, default=10.0, help="control rate (Hz, simulated time for demo)")
+    p.add_argument("--watchdog", type=positive, default=1.0,
                    help="seconds without a fresh pose or scan before the robot is stopped (blocked)")
-    p.add_argument("--accel-max", type=_positive, default=None, metavar="A",
+    p.add_argument("--accel-max", type=positive, default=None, metavar="A",
                    help="the robot's acceleration limit (m/s^2) for the controller's rate limit: each "
                         "command within A*dt of the last in v, braking within half the clearance "
                         "(docs/control.md 'Rate-limited mode'; default 1 m/s^2)")
-    p.add_argument("--alpha-max", type=_positive, default=None, metavar="B",
+    p.add_argument("--alpha-max", type=positive, default=None, metavar="B",
                    help="the robot's turn-rate acceleration limit (rad/s^2) for the controller's rate "
                         "limit (default 6 rad/s^2)")
     p.add_argument("--unlimited", action="store_true",
@@ -125,17 +99,17 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Serve one robot: run the task executive on the bus until SIGINT/SIGTERM "
                                    "or --duration.")
     _common(r, default_world=None)
-    r.add_argument("--duration", type=_positive, default=None, help="stop after this many wall seconds")
+    r.add_argument("--duration", type=positive, default=None, help="stop after this many wall seconds")
     d = sub.add_parser("demo", help="run the service and a simulated robot over Zenoh on loopback",
                        formatter_class=fmt, epilog=EPILOG,
                        description="Run the service and the simulator (a child process) over Zenoh on "
                                    "loopback until the mission completes or --duration, then print a summary.")
     _common(d, default_world="office")
-    d.add_argument("--duration", type=_positive, default=300.0, help="give up after this many simulated seconds")
-    d.add_argument("--speed", type=_positive, default=1.0,
+    d.add_argument("--duration", type=positive, default=300.0, help="give up after this many simulated seconds")
+    d.add_argument("--speed", type=positive, default=1.0,
                    help="simulation speed-up (simulated s per wall s), at most: the simulator waits for the "
                         "service's answer to each pose, never running slower than real time")
-    d.add_argument("--seed", type=seed_arg, default=0, help="lidar noise seed of the simulator (>= 0)")
+    d.add_argument("--seed", type=seed, default=0, help="lidar noise seed of the simulator (>= 0)")
     d.add_argument("--json", action="store_true", help="print the summary as one JSON object on stdout")
     d.add_argument("--keep-going", action="store_true",
                    help="run until --duration even after the mission completes (a recurrent mission "

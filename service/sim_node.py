@@ -48,9 +48,9 @@ from dataclasses import dataclass
 
 import zenoh
 
+from navigation._argtypes import positive, seed
 from perception.ingest import decode_object
 
-from .cli import seed_arg
 from .errors import ServiceError
 from .messages import encode
 from .node import zenoh_config
@@ -210,10 +210,10 @@ def main(argv=None) -> int:
     p.add_argument("--connect", action="append", default=None, help="Zenoh endpoint to connect to (repeatable)")
     p.add_argument("--listen", action="append", default=None, help="Zenoh endpoint to listen on (repeatable)")
     p.add_argument("--zenoh-config", default=None, help="Zenoh JSON5 configuration file")
-    p.add_argument("--speed", type=float, default=1.0, help="simulated seconds per wall second")
-    p.add_argument("--seed", type=seed_arg, default=0, help="lidar noise seed (>= 0)")
+    p.add_argument("--speed", type=positive, default=1.0, help="simulated seconds per wall second")
+    p.add_argument("--seed", type=seed, default=0, help="lidar noise seed (>= 0)")
     p.add_argument("--points", action="store_true", help="publish 'points' instead of 'scan'")
-    p.add_argument("--duration", type=float, default=None, help="stop after this many simulated seconds")
+    p.add_argument("--duration", type=positive, default=None, help="stop after this many simulated seconds")
     a = p.parse_args(argv)
     logging.basicConfig(level=logging.WARNING, format="sim: %(message)s")
     try:

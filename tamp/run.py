@@ -24,6 +24,7 @@ import time
 import numpy as np
 
 from navigation.errors import HarmonicTampError
+from navigation._argtypes import positive, seed
 from navigation.world import World, load_world
 
 from .executive import Executive, ExecutiveConfig, ExecutiveState
@@ -259,8 +260,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("world", help="world file (FORMATS.md) or built-in name (simple, office, cluttered20)")
     p.add_argument("--task", default=None, help="LTL mission over region names instead of the world's task")
     p.add_argument("--known", action="store_true", help="all obstacles known at start (no discovery)")
-    p.add_argument("--seed", type=int, default=0, help="simulator seed (lidar noise)")
-    p.add_argument("--max-time", type=float, default=300.0, help="simulated seconds before the run stops")
+    p.add_argument("--seed", type=seed, default=0, help="simulator seed (lidar noise, >= 0)")
+    p.add_argument("--max-time", type=positive, default=300.0, help="simulated seconds before the run stops")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     return p
 
@@ -277,8 +278,6 @@ def main(argv=None) -> int:
 def _main(argv) -> int:
     try:
         args = _parser().parse_args(argv)
-        if not (math.isfinite(args.max_time) and args.max_time > 0):
-            raise _Usage(f"--max-time must be a positive number of seconds, got {args.max_time!r}")
         world = load_world(args.world)
         prepare(lambda: print("tamp.run: compiling the kernels (first run on this machine only, up to about a "
                               "minute) ...", file=sys.stderr, flush=True))

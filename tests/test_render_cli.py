@@ -33,10 +33,10 @@ def test_renders_simple_with_descents(tmp_path, capsys):
     (["--goal", "nan", "1"], "finite"),
     (["--size", "8"], "between 32 and 8000"),
     (["--inflation", "-1"], ">= 0"),
-    (["--starts", "100000000"], "at most 10000"),  # allocated 68 GiB before the bound
+    (["--starts", "100000000"], "between 0 and 10000"),  # allocated 68 GiB before the bound
     (["--seed", "-1"], ">= 0"),  # numpy's ValueError traceback before
-    (["--max-steps", "10000000"], "at most 1000000"),
-    (["--levels", "100000"], "at most 1000"),
+    (["--max-steps", "10000000"], "between 0 and 1000000"),
+    (["--levels", "100000"], "between 0 and 1000"),
     (["--out", "nf.jpg"], ".png"),
     (["--scale", "cubic"], "invalid choice"),
 ])
