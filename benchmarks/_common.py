@@ -13,7 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["isolated_map", "load_average", "log", "machine_info", "machine_speed", "verdict", "write_results"]
+__all__ = ["isolated_map", "load_average", "log", "machine_info", "machine_speed", "markdown_table", "verdict",
+           "write_results"]
 
 
 def log(msg: str) -> None:
@@ -72,6 +73,21 @@ def verdict(row: dict, key: str) -> str:
     """``PASS``/``FAIL`` of ``row["pass"][key]``, in parentheses when the target does not apply."""
     v = "PASS" if row["pass"][key] else "FAIL"
     return v if row["target_applies"] else f"({v})"
+
+
+def markdown_table(columns, rows, *, fill: str = "-") -> list[str]:
+    """Lines of a markdown table. ``columns``: ``(title, align)`` pairs, align ``"l"`` or ``"r"``;
+    ``rows``: sequences of cells, a row shorter than the header padded with ``fill`` (rows that
+    give only their first cells, as an oracle's or a failed run's); a longer one is an error."""
+    columns = list(columns)
+    out = ["| " + " | ".join(t for t, _ in columns) + " |",
+           "|" + "".join("---:|" if a == "r" else "---|" for _, a in columns)]
+    for row in rows:
+        cells = [str(c) for c in row]
+        if len(cells) > len(columns):
+            raise ValueError(f"row of {len(cells)} cells in a table of {len(columns)} columns: {cells}")
+        out.append("| " + " | ".join(cells + [fill] * (len(columns) - len(cells))) + " |")
+    return out
 
 
 def write_results(out: Path, name: str, result: dict, table: str) -> None:

@@ -53,9 +53,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from benchmarks._common import isolated_map, log, machine_info, write_results
+from benchmarks._common import isolated_map, log, machine_info, markdown_table, write_results
 from benchmarks.methods import ADAPTATION, CLEARANCE, METHODS, ompl_status, oracle_tour, run_method
-from navigation._argtypes import integer, positive
+from navigation._argtypes import integer, positive, world_name
 
 __all__ = ["main", "run", "scenario", "render_markdown", "chatter_table", "targets", "CHATTER_FLAG", "SHARED"]
 
@@ -435,27 +435,37 @@ def _clearances(methods) -> str:
     return ", ".join(f"{m} {c:g} m" for m, c in CLEARANCE.items() if c is not None and m in methods)
 
 
+#: The columns of a scenario's table: (title, alignment).
+SCENARIO_COLUMNS = [("method", "l"), ("completed", "l"), ("collisions", "r"), ("planning initial / total s", "r"),
+                    ("execution s", "r"), ("distance m", "r"), ("/ oracle", "r"), ("/ own clearance", "r"),
+                    ("replans", "r"), ("oscillation /m", "r"), ("chatter /m", "r"), ("oscillation flagged", "l"),
+                    ("min clearance m", "r"), ("adaptation", "l"), ("visited", "l")]
+
+
+#: The columns of the random set's aggregate table.
+RANDOM_COLUMNS = [("method", "l"), ("success", "l"), ("collisions", "r"), ("flagged", "r"), ("distance m", "r"),
+                  ("/ oracle", "r"), ("/ own clearance", "r"), ("execution s", "r"), ("planning total s", "r"),
+                  ("planning sum s", "r"), ("planning initial s", "r"), ("max replan s", "r"), ("replans", "r"),
+                  ("oscillation /m", "r"), ("chatter /m", "r"), ("min clearance m", "r")]
+
+
 def scenario_table(s: dict) -> list[str]:
-    lines = [f"### {s['scenario']} ({s['n_obstacles']} obstacles; task `{s['task']}`)", "",
-             "| method | completed | collisions | planning initial / total s | execution s | distance m | "
-             "/ oracle | / own clearance | replans | oscillation /m | chatter /m | oscillation flagged | "
-             "min clearance m | adaptation | visited |",
-             "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|---|---|"]
+    rows = []
     for m, r in s["runs"].items():
         adapt = {True: "yes", False: "no", None: "-"}[ADAPTATION.get(m)]
         if m == "oracle":
-            lines.append(f"| oracle | - | - | - | - | {_f(r['distance'])} | 1.00 | - | - | - | - | - | - | - | "
-                         f"{' '.join(r['visited'])} ({r['orders']}) |")
-            continue
-        if "error" in r:
-            lines.append(f"| {m} | ERROR: {r['error']} |" + " |" * 13)
-            continue
-        lines.append(
-            f"| {m} | {_yes(r)} | {r['collisions']} | {r['initial_planning_time']:.3f} / {r['planning_time']:.3f} | "
-            f"{r['execution_time']:.1f} | {r['distance']:.2f} | {_f(r.get('ratio'))} | {_f(r.get('own_ratio'))} | "
-            f"{r['replans']} | "
-            f"{r['oscillation']:.2f} | {r['chatter']:.2f} | {'yes' if r['chatter'] > CHATTER_FLAG else 'no'} | "
-            f"{r['min_clearance']:.3f} | {adapt} | {' '.join(r['visited'])} |")
+            rows.append(["oracle", "-", "-", "-", "-", _f(r["distance"]), "1.00", "-", "-", "-", "-", "-", "-", "-",
+                         f"{' '.join(r['visited'])} ({r['orders']})"])
+        elif "error" in r:
+            rows.append([m, f"ERROR: {r['error']}"])
+        else:
+            rows.append([m, _yes(r), r["collisions"], f"{r['initial_planning_time']:.3f} / {r['planning_time']:.3f}",
+                         f"{r['execution_time']:.1f}", f"{r['distance']:.2f}", _f(r.get("ratio")),
+                         _f(r.get("own_ratio")), r["replans"], f"{r['oscillation']:.2f}", f"{r['chatter']:.2f}",
+                         "yes" if r["chatter"] > CHATTER_FLAG else "no", f"{r['min_clearance']:.3f}", adapt,
+                         " ".join(r["visited"])])
+    lines = [f"### {s['scenario']} ({s['n_obstacles']} obstacles; task `{s['task']}`)", "",
+             *markdown_table(SCENARIO_COLUMNS, rows)]
     for m, r in s["runs"].items():
         if r.get("draws") and len(r["draws"]) > 1:
             lines += ["", f"{m}'s draws (the row is the median one, seed {r['seed']}): " + ", ".join(
@@ -522,29 +532,26 @@ def render_markdown(result: dict) -> str:
                 "median / p90 over the completed runs. OHPF plans HT's trees (only its execution differs): "
                 "where both drive one plan their planning times are equal by construction, and the sum shows "
                 "the re-plans each execution causes. `/ own clearance`: the distance over the tour keeping the "
-                "method's own clearance (" + _clearances(methods) + "; HT and OHPF pass narrow passages at the fallback buffer, so theirs can fall below 1).", "",
-                "| method | success | collisions | flagged | distance m | / oracle | / own clearance | execution s | "
-                "planning total s | planning sum s | planning initial s | max replan s | replans | oscillation /m | "
-                "chatter /m | min clearance m |",
-                "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+                "method's own clearance (" + _clearances(methods) + "; HT and OHPF pass narrow passages at the fallback buffer, so theirs can fall below 1).", ""]
+        rows = []
         for m in methods:
             a = result["aggregates"][m]
             if m == "oracle":
                 d = a["distance"]
-                out.append(f"| oracle | {a['completed']}/{a['runs']} | - | - | "
-                           f"{_f(d and d['median'])} / {_f(d and d['p90'])} |" + " - |" * 11)
+                rows.append(["oracle", f"{a['completed']}/{a['runs']}", "-", "-",
+                             f"{_f(d and d['median'])} / {_f(d and d['p90'])}"])
                 continue
 
             def mp(k, fmt="{:.2f}"):
                 v = a[k]
                 return "-" if v is None else f"{fmt.format(v['median'])} / {fmt.format(v['p90'])}"
 
-            out.append(f"| {m} | {a['completed']}/{a['runs']} | {a['collisions']} | {a['flagged']} | {mp('distance')} | "
-                       f"{mp('ratio')} | {mp('own_ratio')} | {mp('execution_time', '{:.1f}')} | "
-                       f"{mp('planning_time', '{:.3f}')} | "
-                       f"{_f(a.get('planning_sum'), '{:.2f}')} | {mp('initial_planning_time', '{:.3f}')} | "
-                       f"{mp('max_replan_time', '{:.3f}')} | "
-                       f"{mp('replans', '{:.0f}')} | {mp('oscillation')} | {mp('chatter')} | {mp('min_clearance', '{:.3f}')} |")
+            rows.append([m, f"{a['completed']}/{a['runs']}", a["collisions"], a["flagged"], mp("distance"), mp("ratio"),
+                         mp("own_ratio"), mp("execution_time", "{:.1f}"), mp("planning_time", "{:.3f}"),
+                         _f(a.get("planning_sum"), "{:.2f}"), mp("initial_planning_time", "{:.3f}"),
+                         mp("max_replan_time", "{:.3f}"), mp("replans", "{:.0f}"), mp("oscillation"), mp("chatter"),
+                         mp("min_clearance", "{:.3f}")])
+        out += markdown_table(RANDOM_COLUMNS, rows)
         for m in methods:
             a = result["aggregates"][m]
             if a.get("draw_collisions") is not None:
@@ -615,7 +622,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                                      formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     parser.add_argument("--quick", action="store_true", help="two small random worlds, reduced timing sweep (CI smoke)")
     parser.add_argument("--random", type=integer(0), default=20, help="random forest worlds (seeds 0 .. N-1)")
-    parser.add_argument("--shared", nargs="*", default=list(SHARED), help="shared worlds to run")
+    parser.add_argument("--shared", type=world_name, nargs="*", default=list(SHARED), help="shared worlds to run")
     parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=list(METHODS), help="methods to run")
     parser.add_argument("--jobs", type=integer(1), default=1, help="runs (one method on one scenario, a process each) at a time")
     parser.add_argument("--max-time", type=positive, default=300.0, help="simulated seconds per mission")

@@ -45,6 +45,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import navigation
+from navigation._argtypes import world_name
 from benchmarks._common import log, machine_info, write_results
 from tamp import MissionPlanner
 from tamp.ltl import parse, to_buchi
@@ -310,7 +311,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="few repeats (smoke test)")
     parser.add_argument("--out", type=Path, default=Path("benchmarks") / "results",
                         help="directory of ltl.json and ltl.md")
-    parser.add_argument("--world", default="office", help="world whose mission and regions are planned")
+    parser.add_argument("--world", type=world_name, default="office", help="world whose mission and regions are planned")
     args = parser.parse_args(argv)
     result = run(quick=args.quick, world=args.world)
     write_results(args.out, "ltl", result, render_markdown(result))

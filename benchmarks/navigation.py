@@ -50,7 +50,7 @@ from pathlib import Path
 import numpy as np
 
 import navigation
-from navigation._argtypes import integer
+from navigation._argtypes import integer, world_name
 from navigation import NavigationFunction, build_forest
 from navigation.forest import clear_cache
 from navigation import potential
@@ -250,7 +250,7 @@ def main(argv: Sequence[str] | None = None, *, sizes: Sequence[int] | None = Non
                         help="directory of navigation.json and navigation.md")
     parser.add_argument("--sizes", type=integer(1), nargs="*", default=list(SIZES),
                         help="obstacle counts of the random worlds")
-    parser.add_argument("--shared", nargs="*", default=list(SHARED), help="shared worlds to include")
+    parser.add_argument("--shared", type=world_name, nargs="*", default=list(SHARED), help="shared worlds to include")
     args = parser.parse_args(argv)
     sizes = tuple(args.sizes if sizes is None else sizes)
     shared = tuple(args.shared if shared is None else shared)

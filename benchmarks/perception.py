@@ -52,7 +52,7 @@ from pathlib import Path
 import numpy as np
 
 import navigation
-from navigation._argtypes import integer, number
+from navigation._argtypes import integer, number, world_name
 from benchmarks._common import _prepare, load_average, log, machine_info, verdict, write_results
 from perception import ObstacleMap
 from perception.evaluation import drive, score, tour
@@ -263,7 +263,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="a short drive in simple only (smoke test)")
     parser.add_argument("--out", type=Path, default=Path("benchmarks") / "results",
                         help="directory of perception.json and perception.md")
-    parser.add_argument("--worlds", nargs="*", default=list(WORLDS), help="shared worlds to drive through")
+    parser.add_argument("--worlds", type=world_name, nargs="*", default=list(WORLDS), help="shared worlds to drive through")
     parser.add_argument("--noise", type=number(0.0), nargs="*", default=[0.0, 0.01], help="range noise levels (m)")
     parser.add_argument("--goals", type=integer(1), default=None, help=f"legs of the drive (default {FULL['goals']})")
     parser.add_argument("--drives", default=None, metavar="SEEDS",

@@ -33,7 +33,7 @@ import numpy as np
 import zenoh
 
 import navigation
-from navigation._argtypes import positive
+from navigation._argtypes import positive, world_name
 from service.cli import stop_child
 from service.node import zenoh_config
 from service.sim import Simulator
@@ -139,7 +139,7 @@ def table(rows) -> str:
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(prog="python -m benchmarks.service", description=__doc__.split("\n\n")[0])
     p.add_argument("--seconds", type=positive, default=30.0, help="wall seconds per case")
-    p.add_argument("--world", default="cluttered20", help="world (20 obstacles by default)")
+    p.add_argument("--world", type=world_name, default="cluttered20", help="world (20 obstacles by default)")
     p.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results", help="output directory")
     p.add_argument("--cases", default="10rec,10,50", help="comma-separated RATE[rec] cases")
     a = p.parse_args(argv)

@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 import navigation
-from navigation._argtypes import integer
+from navigation._argtypes import integer, world_name
 from service.sim import LidarConfig, Simulator, arc_pose
 from benchmarks._common import log, machine_info, verdict, write_results
 from tests.worldgen import random_forest_world, random_free_points
@@ -193,7 +193,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="few samples (smoke test)")
     parser.add_argument("--out", type=Path, default=Path("benchmarks") / "results",
                         help="directory of sim.json and sim.md")
-    parser.add_argument("--shared", nargs="*", default=list(SHARED), help="shared worlds to include")
+    parser.add_argument("--shared", type=world_name, nargs="*", default=list(SHARED), help="shared worlds to include")
     parser.add_argument("--sizes", type=integer(1), nargs="*", default=list(SIZES),
                         help="obstacle counts of random worlds to include")
     args = parser.parse_args(argv)

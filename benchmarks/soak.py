@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 import navigation
-from navigation._argtypes import positive
+from navigation._argtypes import positive, world_name
 from benchmarks._common import log, machine_info, write_results
 
 __all__ = ["main", "run", "render_markdown"]
@@ -142,7 +142,7 @@ def render_markdown(result: dict, command: str) -> str:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks.soak", description=__doc__.split("\n\n")[0],
                                      formatter_class=argparse.ArgumentDefaultsHelpFormatter)
-    parser.add_argument("--world", default="office", help="world file or built-in name")
+    parser.add_argument("--world", type=world_name, default="office", help="world file or built-in name")
     parser.add_argument("--task", default=None, help="LTL mission (default: a patrol of the world's regions)")
     parser.add_argument("--duration", type=positive, default=3600.0, help="simulated seconds")
     parser.add_argument("--window", type=positive, default=300.0, help="simulated seconds per row")

@@ -13,7 +13,7 @@ from __future__ import annotations
 import argparse
 import math
 
-__all__ = ["integer", "number", "positive", "seed"]
+__all__ = ["integer", "number", "positive", "seed", "world_name"]
 
 
 def integer(minimum: int | None = None, maximum: int | None = None):
@@ -67,3 +67,21 @@ positive = number(above=0.0)
 
 #: A random seed: numpy refuses negative ones.
 seed = integer(0)
+
+
+def world_name(text: str) -> str:
+    """A world file or built-in name that loads (:func:`navigation.load_world`); returns the text.
+
+    For commands that hand the name on (to worker processes, to reports), so that a missing or
+    invalid world is one usage error before any work instead of a traceback later."""
+    from .errors import WorldError
+    from .world import load_world
+
+    try:
+        load_world(text)
+    except WorldError as err:
+        raise argparse.ArgumentTypeError(str(err).replace("\n", " ")) from None
+    return text
+
+
+world_name.__name__ = "world"

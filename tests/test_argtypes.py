@@ -8,7 +8,7 @@ import importlib
 
 import pytest
 
-from navigation._argtypes import integer, number, positive, seed
+from navigation._argtypes import integer, number, positive, seed, world_name
 
 
 @pytest.mark.parametrize("kind, text, value", [
@@ -43,6 +43,16 @@ def test_refuses_values_outside_bounds_naming_bound_and_value(kind, text, needle
     assert needle in str(info.value)
 
 
+def test_world_name_loads_the_world_and_returns_the_text(tmp_path):
+    assert world_name("simple") == "simple"
+    bad = tmp_path / "bad.json"
+    bad.write_text("{not json")
+    for text in ("no-such-world", str(bad)):
+        with pytest.raises(argparse.ArgumentTypeError) as info:
+            world_name(text)
+        assert text in str(info.value) and "\n" not in str(info.value)
+
+
 def test_type_names_describe_the_bound():
     assert integer(32, 8000).__name__ == "integer between 32 and 8000"
     assert positive.__name__ == "a finite number > 0"
@@ -64,6 +74,11 @@ BAD = [
     ("benchmarks.navigation", ["--sizes", "0"]), ("benchmarks.sim", ["--sizes", "-3"]),
     ("benchmarks.online", ["--sizes", "x"]), ("benchmarks.soak", ["--window", "nan"]),
     ("benchmarks.service", ["--seconds", "0"]), ("benchmarks.service", ["--cases", "fast"]),
+    # worlds that do not load (a traceback from the worker before)
+    ("benchmarks.evaluation", ["--shared", "no-such-world"]), ("benchmarks.ltl", ["--world", "no-such-world"]),
+    ("benchmarks.soak", ["--world", "no-such-world"]), ("benchmarks.perception", ["--worlds", "no-such-world"]),
+    ("benchmarks.navigation", ["--shared", "no-such-world"]), ("benchmarks.sim", ["--shared", "no-such-world"]),
+    ("benchmarks.service", ["--world", "no-such-world"]),
 ]
 
 

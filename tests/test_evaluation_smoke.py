@@ -336,3 +336,18 @@ def test_a_randomised_method_is_represented_by_its_median_draw():
         run.setdefault("visited", ["d1"])
     text = "\n".join(evaluation.scenario_table(clutter))
     assert "RRT*'s draws (the row is the median one, seed 2): seed 1 14.46 m, seed 2 10.22 m, seed 3 9.75 m." in text
+
+
+def test_markdown_tables_pad_short_rows_and_refuse_long_ones():
+    from benchmarks._common import markdown_table
+
+    lines = markdown_table([("a", "l"), ("b", "r"), ("c", "r")], [["x", 1, 2], ["oracle"]])
+    assert lines == ["| a | b | c |", "|---|---:|---:|", "| x | 1 | 2 |", "| oracle | - | - |"]
+    with pytest.raises(ValueError):
+        markdown_table([("a", "l")], [["x", "y"]])
+    # every row of a scenario's table has the header's number of cells, a failed run's too
+    s = {"scenario": "w", "n_obstacles": 0, "task": "F a",
+         "runs": {"oracle": {"distance": 1.0, "visited": ["a"], "orders": 1}, "NF": {"error": "boom"}}}
+    rows = [line for line in evaluation.scenario_table(s) if line.startswith("| ")]
+    assert len(rows) == 3 and {row.count(" | ") for row in rows} == {len(evaluation.SCENARIO_COLUMNS) - 1}
+    assert "ERROR: boom" in rows[2]
