@@ -47,6 +47,20 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"error: {message}\n")
 
 
+def _viewer(text: str) -> str:
+    """``--viewer``: a Rerun URL (``rerun://``, ``rerun+http://``, ``rerun+https://``) or
+    ``HOST:PORT`` with a port in 1..65535."""
+    if "://" in text:
+        if not text.startswith(("rerun://", "rerun+http://", "rerun+https://")):
+            raise argparse.ArgumentTypeError(f"expected a rerun://, rerun+http:// or rerun+https:// URL, got {text!r}")
+        return text
+    host, _, port = text.rpartition(":")
+    if not host or not port.isdigit() or not 1 <= int(port) <= 65535:
+        raise argparse.ArgumentTypeError(f"expected HOST:PORT (e.g. 127.0.0.1:9876) or a rerun+http:// URL, "
+                                         f"got {text!r}")
+    return text
+
+
 def _common(p: argparse.ArgumentParser, *, default_world: str | None) -> None:
     p.add_argument("--world", default=default_world,
                    help="world file (FORMATS.md) or built-in name (simple, office, cluttered20)")
@@ -63,7 +77,7 @@ def _common(p: argparse.ArgumentParser, *, default_world: str | None) -> None:
                    help="Zenoh JSON5 configuration file, used as is (TLS, access control...); "
                         "--listen/--connect override its endpoints")
     p.add_argument("--record", default=None, metavar="PATH.rrd", help="write a Rerun recording")
-    p.add_argument("--viewer", default=None, metavar="ADDR",
+    p.add_argument("--viewer", type=_viewer, default=None, metavar="ADDR",
                    help="stream to a Rerun viewer over gRPC (HOST:PORT or a rerun+http:// URL), "
                         "e.g. one started with 'rerun --bind 127.0.0.1 --port 9876'")
     p.add_argument("--rate", type=positive, default=10.0, help="control rate (Hz, simulated time for demo)")

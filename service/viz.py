@@ -68,6 +68,8 @@ from collections import deque
 
 import numpy as np
 
+from navigation.errors import ServiceError
+
 __all__ = ["Telemetry"]
 
 log = logging.getLogger("service.viz")
@@ -171,13 +173,18 @@ class Telemetry:
         import rerun as rr
 
         rec = rr.RecordingStream(app_id, recording_id=recording_id)
-        sinks = []
-        if record is not None:
-            sinks.append(rr.FileSink(str(record)))
-        if viewer is not None:
-            url = viewer if "://" in viewer else f"rerun+http://{viewer}/proxy"
-            sinks.append(rr.GrpcSink(url))
-        rec.set_sinks(*sinks)
+        try:
+            sinks = []
+            if record is not None:
+                sinks.append(rr.FileSink(str(record)))
+            if viewer is not None:
+                url = viewer if "://" in viewer else f"rerun+http://{viewer}/proxy"
+                sinks.append(rr.GrpcSink(url))
+            rec.set_sinks(*sinks)
+        except (RuntimeError, ValueError) as err:  # an unwritable path, an address Rerun refuses
+            what = " and ".join(([f"record to {record}"] if record is not None else [])
+                                + ([f"stream to {viewer}"] if viewer is not None else []))
+            raise ServiceError(f"rerun: cannot {what}: {err}") from None
         tel = cls(rec)
         tel._blueprint()
         return tel
@@ -207,14 +214,20 @@ class Telemetry:
         self._rec.send_blueprint(bp)
 
     def close(self) -> None:
+        """Log what is pending, flush (at most 5 s) and disconnect. A sink that cannot take
+        everything (a viewer that is gone or never answered) costs an error line, not the run."""
         if self._rec is not None:
             self.flush_pending()
             try:
-                self._rec.flush(timeout_sec=5.0)
-            except TypeError:
-                self._rec.flush()
-            self._rec.disconnect()
-            self._rec = None
+                try:
+                    self._rec.flush(timeout_sec=5.0)
+                except TypeError:
+                    self._rec.flush()
+            except RuntimeError as err:
+                log.error("rerun: not every message reached the recording's sinks: %s", err)
+            finally:
+                self._rec.disconnect()
+                self._rec = None
 
     # ------------------------------------------------------------------ static scene
     def log_world(self, world, *, true_obstacles: bool = False) -> None:

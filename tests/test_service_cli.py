@@ -91,6 +91,11 @@ def test_fields_tracks_each_waypoints_field_instead_of_pursuing_the_path():
     (["run"], "--world"), (["run", "--world", "no/such/world.json"], "no/such"),
     (["run", "--world", "simple", "--task", "F (a"], "parse_error"),
     (["run", "--world", "simple", "--zenoh-config", "/no/such.json5"], "--zenoh-config"),
+    # Rerun sinks: a traceback before (and a viewer name without a port streamed to port 80)
+    (["run", "--world", "simple", "--record", "/no/such/dir/x.rrd"], "/no/such/dir/x.rrd"),
+    (["demo", "--world", "simple", "--record", "/no/such/dir/x.rrd"], "cannot record"),
+    (["demo", "--viewer", "notanaddress"], "HOST:PORT"), (["run", "--viewer", "host:99999"], "HOST:PORT"),
+    (["demo", "--viewer", "garbage://x"], "rerun+http://"),
 ])
 def test_bad_arguments_give_one_error_line_and_exit_2(argv, needle, capsys):
     try:
@@ -173,3 +178,23 @@ def test_demo_mission_of_simple_completes_over_the_bus_with_a_recording(tmp_path
               "/world/goal", "/world/nf", "/world/field", "/plots/v", "/plots/omega", "/plots/tick_ms",
               "/status/state", "/status/plan"):
         assert p in paths, (p, sorted(paths))
+
+
+def test_a_viewer_that_never_answers_costs_an_error_line_not_the_run(caplog):
+    from service.viz import Telemetry
+
+    class Stream:  # a RecordingStream whose gRPC sink never connected
+        disconnected = False
+
+        def flush(self, timeout_sec=None):
+            raise RuntimeError("Flush timed out - not all log messages were sent")
+
+        def disconnect(self):
+            self.disconnected = True
+
+    stream = Stream()
+    tel = Telemetry(stream)
+    with caplog.at_level("ERROR", logger="service.viz"):
+        tel.close()
+    assert stream.disconnected and not tel.enabled
+    assert "not every message reached" in caplog.text
