@@ -43,6 +43,9 @@ __all__ = ["MissionPlanner", "MissionMode", "Plan"]
 
 INF = math.inf
 
+#: Why a mission is unsatisfiable once translated over disjoint regions (``UnsatisfiableError``).
+_DISJOINT = "the regions are disjoint: the robot is in one region at a time at most"
+
 
 class MissionMode(str, Enum):
     """How a new mission combines with the active one (FORMATS.md ``events[].mode``)."""
@@ -704,10 +707,9 @@ class MissionPlanner:
         letters = ops.singleton_letters(buchi, known)
         if not buchi.accepting:
             raise UnsatisfiableError(text, "its automaton has no accepting state" if isinstance(formula, Buchi)
-                                     else "no run visiting one region at a time is accepted (regions are disjoint)")
+                                     else _DISJOINT)
         if ops.is_empty(buchi, letters):
-            raise UnsatisfiableError(text, "no run visiting one region at a time is accepted "
-                                           "(regions are disjoint)")
+            raise UnsatisfiableError(text, _DISJOINT)
         return text, ops.trim(buchi, letters), letters
 
     def _initial_states(self, buchi: Buchi) -> frozenset[int]:
