@@ -61,6 +61,22 @@ def _viewer(text: str) -> str:
     return text
 
 
+def _serve(text: str) -> tuple[str, int]:
+    """``--serve``: ``PORT`` (on 127.0.0.1) or ``IP:PORT``, the address of the Rerun gRPC server
+    the service hosts. Rerun binds IP literals only (``0.0.0.0`` for every interface)."""
+    import ipaddress
+
+    host, _, port = text.rpartition(":")
+    host = host.strip("[]") or "127.0.0.1"
+    try:
+        ipaddress.ip_address(host)
+    except ValueError:
+        host = ""
+    if not host or not port.isdigit() or not 1 <= int(port) <= 65535:
+        raise argparse.ArgumentTypeError(f"expected PORT or IP:PORT (e.g. 9876, 0.0.0.0:9876), got {text!r}")
+    return host, int(port)
+
+
 def _common(p: argparse.ArgumentParser, *, default_world: str | None) -> None:
     p.add_argument("--world", default=default_world,
                    help="world file (FORMATS.md) or built-in name (simple, office, cluttered20)")
@@ -79,7 +95,14 @@ def _common(p: argparse.ArgumentParser, *, default_world: str | None) -> None:
     p.add_argument("--record", default=None, metavar="PATH.rrd", help="write a Rerun recording")
     p.add_argument("--viewer", type=_viewer, default=None, metavar="ADDR",
                    help="stream to a Rerun viewer over gRPC (HOST:PORT or a rerun+http:// URL), "
-                        "e.g. one started with 'rerun --bind 127.0.0.1 --port 9876'")
+                        "e.g. one started with 'rerun --bind 127.0.0.1 --port 9876'; messages wait in "
+                        "memory while the viewer is not there")
+    p.add_argument("--serve", type=_serve, default=None, metavar="[IP:]PORT",
+                   help="host a Rerun gRPC server (on 127.0.0.1 unless IP is given) that viewers connect to "
+                        "at any time: 'rerun --connect rerun+http://127.0.0.1:PORT/proxy'; it keeps at most "
+                        "--serve-memory of the newest data")
+    p.add_argument("--serve-memory", default="256MiB", metavar="SIZE",
+                   help="memory limit of the --serve server (e.g. 512MiB, 2GiB): the oldest data goes first")
     p.add_argument("--rate", type=positive, default=10.0, help="control rate (Hz, simulated time for demo)")
     p.add_argument("--watchdog", type=positive, default=1.0,
                    help="seconds without a fresh pose or scan before the robot is stopped (blocked)")
@@ -204,7 +227,7 @@ def _cmd_run(a) -> int:
     cfg = NodeConfig(robot=a.robot, prefix=a.prefix, rate=a.rate, watchdog=a.watchdog,
                      listen=tuple(a.listen) if a.listen else None, connect=tuple(a.connect) if a.connect else None,
                      zenoh_config=a.zenoh_config)
-    tel = Telemetry.from_options(record=a.record, viewer=a.viewer)
+    tel = _telemetry(Telemetry, a)
     tel.log_world(world)
     node = ServiceNode(brain, cfg, telemetry=tel)
     _install_signals(node.stop)
@@ -213,6 +236,17 @@ def _cmd_run(a) -> int:
         node.run(a.duration)
     print(f"tamp-service: stopped after {node.stats.ticks} ticks", file=sys.stderr)
     return 0
+
+
+def _telemetry(Telemetry, a):
+    """The Rerun stream of ``--record`` / ``--viewer`` / ``--serve``; says where viewers connect."""
+    tel = Telemetry.from_options(record=a.record, viewer=a.viewer, serve=a.serve, serve_memory=a.serve_memory)
+    if a.serve is not None:
+        host, port = a.serve
+        shown = f"[{host}]" if ":" in host else host
+        print(f"tamp-service: Rerun viewers connect with: rerun --connect rerun+http://{shown}:{port}/proxy "
+              f"(the server keeps the newest {a.serve_memory})", file=sys.stderr, flush=True)
+    return tel
 
 
 def _repo_root() -> str:
@@ -232,7 +266,7 @@ def _cmd_demo(a) -> int:
     cfg = NodeConfig(robot=a.robot, prefix=a.prefix, rate=a.rate * a.speed, watchdog=a.watchdog,
                      listen=tuple(listen), connect=tuple(a.connect) if a.connect else None,
                      zenoh_config=a.zenoh_config)
-    tel = Telemetry.from_options(record=a.record, viewer=a.viewer)
+    tel = _telemetry(Telemetry, a)
     tel.log_world(world, true_obstacles=True)
     node = ServiceNode(brain, cfg, telemetry=tel)
     env = dict(os.environ)

@@ -1,8 +1,10 @@
-"""Rerun streaming of the running service (``--record PATH.rrd`` and/or ``--viewer ADDR``).
+"""Rerun streaming of the running service (``--record PATH.rrd``, ``--viewer ADDR``, ``--serve PORT``).
 
-:class:`Telemetry` is the one wrapper around a ``rerun.RecordingStream``. Built without a sink
-(:meth:`Telemetry.disabled`, or :meth:`Telemetry.from_options` with neither ``record`` nor
-``viewer``) every method returns at once, before any archetype is built (ecosystem note: an
+:class:`Telemetry` is the one wrapper around a ``rerun.RecordingStream``. Its sinks: a file, a
+viewer the stream pushes to (Rerun keeps what the viewer has not taken in memory, without a
+bound), and a gRPC server the service hosts for viewers to join at any time, keeping at most
+``serve_memory`` of the newest data. Built without a sink (:meth:`Telemetry.disabled`, or
+:meth:`Telemetry.from_options` with none of them) every method returns at once, before any archetype is built (ecosystem note: an
 unguarded ``rr.log`` of 1000 points costs ~0.1 ms even with Rerun off).
 
 Entity paths (2-D world frame, metres)::
@@ -117,6 +119,18 @@ def _outlines(squircles) -> list[np.ndarray]:
     return out
 
 
+def _check_port_free(host: str, port: int, what: str) -> None:
+    """Rerun's server only logs a port in use from its own thread; find out before starting it."""
+    import socket
+
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    with socket.socket(family, socket.SOCK_STREAM) as s:
+        try:
+            s.bind((host, port))
+        except OSError as err:
+            raise ServiceError(f"rerun: cannot {what}: {err.strerror or err}") from None
+
+
 class Telemetry:
     """Rerun output of the service; inert when it has no sink. Use :meth:`from_options`.
 
@@ -164,14 +178,25 @@ class Telemetry:
         return cls(None)
 
     @classmethod
-    def from_options(cls, *, record=None, viewer=None, app_id: str = "tamp-service",
+    def from_options(cls, *, record=None, viewer=None, serve: tuple[str, int] | None = None,
+                     serve_memory: str = "256MiB", app_id: str = "tamp-service",
                      recording_id: str | None = None) -> "Telemetry":
-        """A stream to ``record`` (an ``.rrd`` path) and/or ``viewer`` (a gRPC address such as
-        ``rerun+http://127.0.0.1:9876/proxy``, or ``HOST:PORT``); disabled when neither."""
-        if record is None and viewer is None:
+        """A stream to ``record`` (an ``.rrd`` path), ``viewer`` (a gRPC address such as
+        ``rerun+http://127.0.0.1:9876/proxy``, or ``HOST:PORT``) and/or a gRPC server the
+        service hosts at ``serve = (ip, port)`` keeping at most ``serve_memory`` (a Rerun size
+        such as ``"256MiB"``; the oldest data goes first); disabled when none.
+
+        Raises :class:`ServiceError` for a path that cannot be written, an address Rerun
+        refuses, a port already in use or a bad memory size."""
+        if record is None and viewer is None and serve is None:
             return cls.disabled()
         import rerun as rr
 
+        what = " and ".join(([f"record to {record}"] if record is not None else [])
+                            + ([f"stream to {viewer}"] if viewer is not None else [])
+                            + ([f"serve on {serve[0]}:{serve[1]}"] if serve is not None else []))
+        if serve is not None:
+            _check_port_free(*serve, what)
         rec = rr.RecordingStream(app_id, recording_id=recording_id)
         try:
             sinks = []
@@ -180,10 +205,10 @@ class Telemetry:
             if viewer is not None:
                 url = viewer if "://" in viewer else f"rerun+http://{viewer}/proxy"
                 sinks.append(rr.GrpcSink(url))
+            if serve is not None:
+                sinks.append(rr.GrpcServerSink(serve[0], serve[1], server_memory_limit=str(serve_memory)))
             rec.set_sinks(*sinks)
-        except (RuntimeError, ValueError) as err:  # an unwritable path, an address Rerun refuses
-            what = " and ".join(([f"record to {record}"] if record is not None else [])
-                                + ([f"stream to {viewer}"] if viewer is not None else []))
+        except (RuntimeError, ValueError) as err:  # an unwritable path, an address or a size Rerun refuses
             raise ServiceError(f"rerun: cannot {what}: {err}") from None
         tel = cls(rec)
         tel._blueprint()

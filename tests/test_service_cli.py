@@ -96,6 +96,8 @@ def test_fields_tracks_each_waypoints_field_instead_of_pursuing_the_path():
     (["demo", "--world", "simple", "--record", "/no/such/dir/x.rrd"], "cannot record"),
     (["demo", "--viewer", "notanaddress"], "HOST:PORT"), (["run", "--viewer", "host:99999"], "HOST:PORT"),
     (["demo", "--viewer", "garbage://x"], "rerun+http://"),
+    (["demo", "--serve", "localhost:9876"], "IP:PORT"), (["run", "--serve", "70000"], "IP:PORT"),
+    (["demo", "--world", "simple", "--serve", str(free_port()), "--serve-memory", "lots"], "server_memory_limit"),
 ])
 def test_bad_arguments_give_one_error_line_and_exit_2(argv, needle, capsys):
     try:
@@ -198,3 +200,40 @@ def test_a_viewer_that_never_answers_costs_an_error_line_not_the_run(caplog):
         tel.close()
     assert stream.disconnected and not tel.enabled
     assert "not every message reached" in caplog.text
+
+
+def test_serve_hosts_a_rerun_server_that_a_late_viewer_reads_from_the_start(tmp_path):
+    """``--serve PORT``: the service hosts Rerun's gRPC server; a client that connects after the
+    start (here ``rerun URL --save``, the viewer's headless form) receives everything from the
+    start (the static workspace too) and the mission's live data."""
+    port = free_port()
+    proc = _cli("demo", "--world", str(world_file("simple")), "--speed", "4", "--serve", str(port), "--json",
+                "--duration", "120", "--prefix", unique_prefix("serve"))
+    try:
+        assert wait_for(lambda: _port_open(port), timeout=60), "the Rerun server never listened"
+        rerun = Path(sys.executable).parent / "rerun"
+        rrd = tmp_path / "served.rrd"
+        viewer = subprocess.run([str(rerun) if rerun.exists() else "rerun", f"rerun+http://127.0.0.1:{port}/proxy",
+                                 "--save", str(rrd), "--port", str(free_port())],
+                                capture_output=True, text=True, timeout=150)
+        out, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, err
+    assert "rerun --connect rerun+http://127.0.0.1:" in err
+    assert json.loads(out.strip().splitlines()[-1])["completed"] is True
+    assert viewer.returncode == 0, viewer.stderr
+    from rerun.chunk import RrdReader
+
+    paths = {str(c.entity_path) for c in RrdReader(str(rrd)).stream().collect().stream()}
+    for p in ("/world/workspace", "/world/obstacles/true", "/world/robot", "/world/lidar", "/status/state"):
+        assert p in paths, (p, sorted(paths))
+
+
+def _port_open(port: int) -> bool:
+    try:
+        socket.create_connection(("127.0.0.1", port), timeout=0.5).close()
+        return True
+    except OSError:
+        return False
