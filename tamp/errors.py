@@ -34,15 +34,26 @@ class LtlSyntaxError(TampError, SyntaxError):
     reason : str
         What is wrong there, without the caret picture.
 
-    ``str(err)`` shows the reason, the formula and a caret under the offending column.
+    ``str(err)`` shows the reason, the formula and a caret under the offending column; of a
+    formula longer than ``2 * WINDOW`` characters only ``WINDOW`` either side of the column
+    (``...`` marks the cut), and line breaks and tabs as spaces, so the caret stays under it.
     """
+
+    WINDOW = 40
 
     def __init__(self, reason: str, text: str, position: int):
         self.reason = reason
         self.text = text
         self.position = int(position)
-        caret = " " * max(self.position, 0) + "^"
-        super().__init__(f"{reason} at column {self.position + 1}\n  {text}\n  {caret}")
+        pos = max(self.position, 0)
+        start, end = 0, len(text)
+        if len(text) > 2 * self.WINDOW:
+            start, end = max(0, pos - self.WINDOW), min(len(text), pos + self.WINDOW)
+        shown = text[start:end].translate({ord("\n"): " ", ord("\r"): " ", ord("\t"): " "})
+        lead = "..." if start > 0 else ""
+        shown = lead + shown + ("..." if end < len(text) else "")
+        caret = " " * (len(lead) + pos - start) + "^"
+        super().__init__(f"{reason} at column {self.position + 1}\n  {shown}\n  {caret}")
 
     def __str__(self) -> str:  # SyntaxError.__str__ would print only the first argument
         return self.args[0]

@@ -682,3 +682,18 @@ def test_refusals_name_the_line(text, line, fragment):
 def test_refuses_non_text():
     with pytest.raises(TypeError, match="HOA text as str"):
         from_hoa(b"HOA: v1")
+
+
+def test_deep_labels_and_conditions_are_refused_or_read_without_recursion():
+    def automaton(label="0", acc="Inf(0)"):
+        return ('HOA: v1\nStates: 1\nStart: 0\nAP: 1 "a"\nAcceptance: 1 ' + acc
+                + '\n--BODY--\nState: 0 {0}\n[' + label + '] 0\n--END--\n')
+
+    # negations are counted: 5000 of them (RecursionError before) are their parity
+    even, odd = from_hoa(automaton("!" * 5000 + "0")), from_hoa(automaton("!" * 5001 + "0"))
+    assert even.edges[0][0].guard == Bdd.var(0) and odd.edges[0][0].guard == ~Bdd.var(0)
+    ok = hoa.MAX_NESTING
+    assert from_hoa(automaton("(" * ok + "0" + ")" * ok)).edges[0][0].guard == Bdd.var(0)
+    for text in (automaton("(" * 5000 + "0" + ")" * 5000), automaton(acc="(" * (ok + 1) + "Inf(0)" + ")" * (ok + 1))):
+        with pytest.raises(HoaError, match=f"nested deeper than {ok} levels"):
+            from_hoa(text)

@@ -245,3 +245,35 @@ def test_non_ascii_letter_is_a_syntax_error():
     with pytest.raises(LtlSyntaxError) as info:
         parse("a & \u00e9t\u00e9")
     assert info.value.position == 4
+
+
+@pytest.mark.parametrize("make", [
+    lambda k: "(" * k + "a" + ")" * k, lambda k: "!" * k + "a", lambda k: "X " * k + "a",
+    lambda k: " U ".join(["a"] * (k + 1)), lambda k: " -> ".join(["a"] * (k + 1)),
+    lambda k: "F (a & " * k + "b" + ")" * k,
+])
+def test_nesting_is_bounded_with_a_syntax_error_not_a_recursion_error(make):
+    """5000 levels raised RecursionError from the parser (a traceback in every command); up to
+    MAX_NESTING levels parse and translate, beyond it one LtlSyntaxError says why."""
+    from tamp.ltl import to_buchi
+    from tamp.ltl.syntax import MAX_NESTING
+
+    deepest = make(MAX_NESTING // 2 if make(1).startswith("F (") else MAX_NESTING)
+    to_buchi(parse(deepest))
+    for k in (MAX_NESTING + 1, 5000):
+        with pytest.raises(LtlSyntaxError) as info:
+            parse(make(k))
+        assert f"nested deeper than {MAX_NESTING} levels" in str(info.value)
+
+
+def test_error_pictures_of_long_formulas_show_a_window_round_the_column():
+    text = "F a & " * 100 + "& b\nc"
+    with pytest.raises(LtlSyntaxError) as info:
+        parse(text)
+    _, shown, caret = str(info.value).split("\n")
+    assert info.value.position == text.index("& b")
+    assert len(shown) < 100 and shown.startswith("  ...") and "\n" not in shown
+    assert shown[len(caret) - 1] == "&" and caret.strip() == "^"
+    with pytest.raises(LtlSyntaxError) as info:  # a short one is shown whole, line break as a space
+        parse("F (a &\n b")
+    assert str(info.value).split("\n")[1:] == ["  F (a &  b", "    ^"]

@@ -257,3 +257,12 @@ def test_the_executive_answers_finite_commands_to_nonsense_that_parses():
         sim.step((out.v, out.omega))
     assert not sim.metrics.collisions
     assert "error" in states and "executing" in states  # the bad poses were seen, and recovered from
+
+
+@pytest.mark.parametrize("formula", ["!" * 5000 + "a", "(" * 3000 + "a" + ")" * 3000, "X " * 2000 + "a"])
+def test_a_task_nested_thousands_deep_is_refused_as_a_parse_error(formula):
+    """RecursionError escaped the task handler before (tamp.ltl.syntax.MAX_NESTING)."""
+    brain = ExecutiveBrain(navigation.load_world(world_file("simple")), "F a")
+    with pytest.raises(TaskRejected) as info:
+        brain.request_task(m.parse_task_request(json.dumps({"formula": formula, "mode": "replace"})))
+    assert info.value.code.value == "parse_error" and "nested deeper" in str(info.value)

@@ -225,10 +225,16 @@ _UNSUPPORTED_ACC = (
 )
 
 
+#: Deepest parenthesis nesting of a label or the acceptance condition (the parser recurses on
+#: each; 5000 raised ``RecursionError``). Negations are counted, not recursed.
+MAX_NESTING = 100
+
+
 class _Parser:
     def __init__(self, text: str):
         self.toks = _tokenize(text)
         self.i = 0
+        self.depth = 0
         # header
         self.name = ""
         self.num_states: int | None = None
@@ -258,6 +264,12 @@ class _Parser:
 
     def fail(self, message: str, tok: _Tok | None = None):
         raise HoaError(message, (tok or self.peek()).line)
+
+    def nest(self, tok: _Tok) -> None:
+        """Enter one parenthesis level (the caller leaves it with ``self.depth -= 1``)."""
+        self.depth += 1
+        if self.depth > MAX_NESTING:
+            self.fail(f"parentheses nested deeper than {MAX_NESTING} levels", tok)
 
     def expect_int(self, what: str) -> tuple[int, _Tok]:
         t = self.take()
@@ -394,8 +406,10 @@ class _Parser:
     def acc_atom(self):
         t = self.take()
         if t.kind == "punct" and t.value == "(":
+            self.nest(t)
             inner = self.acc_or()
             self.expect_punct(")", "to close '(' in the acceptance condition")
+            self.depth -= 1
             return inner
         if t.kind == "ident" and t.value in ("t", "f"):
             return (t.value,)
@@ -434,10 +448,12 @@ class _Parser:
         return g
 
     def label_not(self) -> Bdd:
-        if self.at_punct("!"):
+        negations = 0
+        while self.at_punct("!"):
             self.take()
-            return ~self.label_not()
-        return self.label_atom()
+            negations += 1
+        g = self.label_atom()
+        return ~g if negations % 2 else g
 
     def label_atom(self) -> Bdd:
         t = self.take()
@@ -459,8 +475,10 @@ class _Parser:
                           "header, before its use)", t)
             return g
         if t.kind == "punct" and t.value == "(":
+            self.nest(t)
             g = self.label_expr()
             self.expect_punct(")", "to close '(' in the label")
+            self.depth -= 1
             return g
         self.fail(f"expected an AP index, t, f, an @alias, '!' or '(' in the label, found "
                   f"{t.show()}", t)

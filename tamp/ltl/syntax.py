@@ -72,11 +72,26 @@ def _tokenize(text: str) -> list[tuple[str, str, int]]:
     return out
 
 
+#: Deepest nesting ``parse`` accepts: parentheses, prefix operators and right operands of
+#: ``->``, ``<->`` and the binary temporal operators, each a level. Missions are far shallower
+#: (visiting 12 regions in order nests 24); the bound keeps the recursive parser and the
+#: recursive passes after it (rewriting, translation, printing) within Python's stack, where a
+#: formula of 5000 ``!`` raised ``RecursionError``.
+MAX_NESTING = 100
+
+
 class _Parser:
     def __init__(self, text: str):
         self.text = text
         self.toks = _tokenize(text)
         self.i = 0
+        self.depth = 0
+
+    def nest(self):
+        """Enter one level of nesting (the caller leaves it with ``self.depth -= 1``)."""
+        self.depth += 1
+        if self.depth > MAX_NESTING:
+            self.error(f"formula nested deeper than {MAX_NESTING} levels")
 
     def peek(self):
         return self.toks[self.i]
@@ -116,7 +131,10 @@ class _Parser:
         if self.peek()[:2] == ("op", "<->"):
             self.take()
             self.expect_operand("<->")
-            return Formula("<->", (left, self.equiv()))
+            self.nest()
+            right = self.equiv()
+            self.depth -= 1
+            return Formula("<->", (left, right))
         return left
 
     def implies(self) -> Formula:
@@ -124,7 +142,10 @@ class _Parser:
         if self.peek()[:2] == ("op", "->"):
             self.take()
             self.expect_operand("->")
-            return Formula("->", (left, self.implies()))
+            self.nest()
+            right = self.implies()
+            self.depth -= 1
+            return Formula("->", (left, right))
         return left
 
     def disj(self) -> Formula:
@@ -149,7 +170,10 @@ class _Parser:
         if kind == "op" and value in _BIN_TEMPORAL:
             self.take()
             self.expect_operand(value)
-            return Formula(value, (left, self.binary()))
+            self.nest()
+            right = self.binary()
+            self.depth -= 1
+            return Formula(value, (left, right))
         return left
 
     def unary(self) -> Formula:
@@ -157,7 +181,10 @@ class _Parser:
         if kind == "op" and value in _UNARY:
             self.take()
             self.expect_operand(value)
-            return Formula(_UNARY[value], (self.unary(),))
+            self.nest()
+            operand = self.unary()
+            self.depth -= 1
+            return Formula(_UNARY[value], (operand,))
         return self.atom()
 
     def atom(self) -> Formula:
@@ -169,7 +196,11 @@ class _Parser:
             return TRUE if value == "1" else FALSE
         if kind == "op" and value == "(":
             self.expect_operand("(")
+            self.i -= 1  # (an error names the '(')
+            self.nest()
+            self.i += 1
             f = self.equiv()
+            self.depth -= 1
             if self.peek()[:2] != ("op", ")"):
                 k, v, _ = self.peek()
                 if k == "end":
