@@ -19,7 +19,17 @@ __all__ = [
     "HoaError",
     "NoPlanError",
     "InvalidRequestError",
+    "brief",
 ]
+
+
+def brief(text: str, limit: int = 120) -> str:
+    """``repr(text)``, cut to about ``limit`` characters with ``...`` for error messages that
+    quote a mission (a request can carry megabytes of formula; the message goes on the bus)."""
+    text = str(text)
+    if len(text) <= limit:
+        return repr(text)
+    return repr(text[:limit]) + f"... ({len(text)} characters)"
 
 
 class LtlSyntaxError(TampError, SyntaxError):
@@ -73,9 +83,13 @@ class UnknownRegionError(TampError, ValueError):
     def __init__(self, names, known=()):
         self.names = tuple(sorted(names))
         self.known = tuple(sorted(known))
+        def listed(items, show):
+            more = len(items) - 20
+            return ", ".join(map(show, items[:20])) + (f", ... ({more} more)" if more > 0 else "")
+
         super().__init__(
-            f"unknown region name(s) {', '.join(map(repr, self.names))}; "
-            f"known regions: {', '.join(self.known) or '(none)'}"
+            f"unknown region name(s) {listed(self.names, repr)}; "
+            f"known regions: {listed(self.known, str) or '(none)'}"
         )
 
 
@@ -89,7 +103,7 @@ class UnsatisfiableError(TampError, ValueError):
 
     def __init__(self, formula: str, detail: str = ""):
         self.formula = str(formula)
-        msg = f"the mission {self.formula!r} is unsatisfiable: no infinite run satisfies it"
+        msg = f"the mission {brief(self.formula)} is unsatisfiable: no infinite run satisfies it"
         super().__init__(msg + (f" ({detail})" if detail else ""))
 
 

@@ -341,7 +341,7 @@ from perception.errors import ScanError
 from perception.fit import inflate, radial_error
 from perception.map import ObstacleMap
 
-from .errors import InvalidRequestError, NoPlanError
+from .errors import InvalidRequestError, NoPlanError, brief
 from .harmonic_tree import NoTreePathError, RotationWeights, TreeFailure, plan_tree, rotation_terms
 from .ltl import ops
 from .navmap import START, Node
@@ -2326,7 +2326,7 @@ def _check_alphabet(text, buchi, states, letters, old_letters, changed) -> None:
         if any(not buchi.successors(q, mask) for q in seen):
             name = next((n for n in changed if buchi.mask([n]) == mask), changed[0])
             raise RegionError(name, RegionRule.ALPHABET,
-                              f"the running mission {text!r} was translated over regions that are all in its "
+                              f"the running mission {brief(text)} was translated over regions that are all in its "
                               "formula and cannot read a visit to a region outside it; send the region with "
                               "mode 'replace' (the whole mission)")
 

@@ -32,7 +32,7 @@ import numpy as np
 from navigation.errors import TampError
 
 from ._product_kernel import settle
-from .errors import (InvalidRequestError, NoPlanError, UnknownRegionError,
+from .errors import (InvalidRequestError, NoPlanError, UnknownRegionError, brief,
                      UnsatisfiableError)
 from .ltl import ops
 from .ltl.automaton import Buchi
@@ -726,7 +726,7 @@ class MissionPlanner:
         if mode is MissionMode.ADD and self._mission is not None:
             old = self._mission
             if self._violated is not None or not self._reachable:
-                raise NoPlanError(f"cannot add to the mission {old.text!r}: it was violated at "
+                raise NoPlanError(f"cannot add to the mission {brief(old.text)}: it was violated at "
                                   f"region {self._violated!r}; replace it instead")
             rest = ops.from_states(old.buchi, self._reachable)
             new = ops.from_states(buchi, self._initial_states(buchi))
@@ -752,7 +752,7 @@ class MissionPlanner:
         done = ops.universal_states(buchi, letters)
         if not done:
             raise InvalidRequestError(
-                f"urgent request {text!r} is not co-safe (no finite path serves it for good); "
+                f"urgent request {brief(text)} is not co-safe (no finite path serves it for good); "
                 "urgent requests are reachability tasks such as 'F u1'")
         states = self._initial_states(buchi)
         queue = list(self._urgent)
@@ -828,10 +828,10 @@ class MissionPlanner:
 
     def _compute(self, mission: _Mission, states: frozenset[int], urgent: list[_Urgent]) -> Plan:
         if self._violated is not None and mission is self._mission:
-            raise NoPlanError(f"the mission {mission.text!r} was violated on entering region "
+            raise NoPlanError(f"the mission {brief(mission.text)} was violated on entering region "
                               f"{self._violated!r}; no continuation satisfies it")
         if not states:
-            raise NoPlanError(f"the mission {mission.text!r} cannot be satisfied from "
+            raise NoPlanError(f"the mission {brief(mission.text)} cannot be satisfied from "
                               f"{self.node.region!r}: its automaton has no run from here")
         node = self._node
         ucost, upath = 0.0, ()
@@ -840,7 +840,7 @@ class MissionPlanner:
             if res is None:
                 blocked = self._blocked_urgent(urgent[0], mission, node, states)
                 raise NoPlanError(
-                    f"the urgent request {urgent[0].text!r} cannot be served from {self.node} in the "
+                    f"the urgent request {brief(urgent[0].text)} cannot be served from {self.node} in the "
                     f"current map" + _blocked_text(blocked), blocked)
             ucost, upath, node, states = res
         prod = mission.product
@@ -849,7 +849,7 @@ class MissionPlanner:
         if lasso is None:
             blocked = self._blocked_lasso(mission, sources)
             raise NoPlanError(
-                f"no accepting lasso for the mission {mission.text!r} from {self.navmap.nodes[node]} "
+                f"no accepting lasso for the mission {brief(mission.text)} from {self.navmap.nodes[node]} "
                 "in the current map" + _blocked_text(blocked), blocked)
         self.last_stats = {"cycles_computed": lasso.cycles_computed,
                            "cycles_reused": lasso.cycles_reused}

@@ -266,3 +266,19 @@ def test_a_task_nested_thousands_deep_is_refused_as_a_parse_error(formula):
     with pytest.raises(TaskRejected) as info:
         brain.request_task(m.parse_task_request(json.dumps({"formula": formula, "mode": "replace"})))
     assert info.value.code.value == "parse_error" and "nested deeper" in str(info.value)
+
+
+def test_error_replies_quote_a_huge_mission_briefly():
+    """A request may carry megabytes of formula; errors quote about 120 characters of it and
+    list at most 20 unknown names (the planner's texts are the normalised formula, so a
+    repeated conjunct is quoted once)."""
+    from tamp.errors import UnsatisfiableError, brief
+
+    assert brief("F a") == "'F a'" and brief("F a & " * 1000) == repr(("F a & " * 1000)[:120]) + "... (6000 characters)"
+    err = UnsatisfiableError(" & ".join(f"F r{i}" for i in range(5000)), "detail")
+    assert len(str(err)) < 300 and str(err).endswith("(detail)")
+    brain = ExecutiveBrain(navigation.load_world(world_file("simple")), "F a")
+    names = " & ".join(f"F z{i}" for i in range(500))
+    with pytest.raises(TaskRejected) as info:
+        brain.request_task(m.parse_task_request(json.dumps({"formula": names, "mode": "replace"})))
+    assert info.value.code.value == "unknown_region" and "(480 more)" in str(info.value) and len(str(info.value)) < 600
