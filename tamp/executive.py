@@ -344,7 +344,7 @@ from perception.map import ObstacleMap
 from .errors import InvalidRequestError, NoPlanError, brief
 from .harmonic_tree import NoTreePathError, RotationWeights, TreeFailure, plan_tree, rotation_terms
 from .ltl import ops
-from .navmap import START, Node
+from .navmap import MAX_REGIONS, START, Node
 from .planner import MissionMode, MissionPlanner, Plan
 from .roadmap import Roadmap, RoadmapConfig, _outside_all, _point_segment_distance, grown, segments_clear
 
@@ -384,6 +384,7 @@ class RegionRule(str, enum.Enum):
     FREE_SPACE = "free_space"  #: ... and clear of every known obstacle and obstacle estimate
     DISJOINT = "disjoint"      #: region discs must be pairwise disjoint
     ALPHABET = "alphabet"      #: the running mission cannot read a visit to it (see Executive.set_regions)
+    COUNT = "count"            #: the change would hold more than tamp.navmap.MAX_REGIONS regions
 
 
 class RegionError(InvalidRequestError):
@@ -1026,7 +1027,9 @@ class Executive:
           were all atomic propositions of its formula, its automaton (trimmed over their
           letters) may lack the transitions for a region outside the formula. A region that
           a current automaton state cannot read is refused; send it with mode ``replace``
-          (the new mission is translated over the new regions).
+          (the new mission is translated over the new regions);
+        * ``count``: at most :data:`tamp.navmap.MAX_REGIONS` regions after the change (checked
+          first, for the whole change).
 
         On success the planner's navigation map is rebuilt over the new regions (the mission's
         automaton and its current states, the pending urgent requests and the evaluated
@@ -1149,6 +1152,11 @@ class Executive:
             changed.append(name)
         if not changed:
             return None
+        if len(new) > MAX_REGIONS:
+            added = [n for n in changed if n not in old]
+            raise RegionError(added[MAX_REGIONS - len(old)] if len(old) < MAX_REGIONS else added[0], RegionRule.COUNT,
+                              f"{len(new)} regions after the change: the navigation map holds at most {MAX_REGIONS} "
+                              f"(tamp.navmap.MAX_REGIONS)")
         self._check_regions(new, changed)
         moved = {n for n in changed if n in old}
         pose = self._pose

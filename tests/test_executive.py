@@ -1021,6 +1021,29 @@ def test_refused_regions_name_the_region_and_rule_and_change_nothing(regions, ru
         assert (ex.status(), dict(ex.regions), ex.planner, ex.task) == before
 
 
+def test_more_regions_than_the_navigation_map_holds_are_refused_first_and_change_nothing():
+    """A request that adds 676 regions ran out of memory in the product search (forty-eighth
+    session); beyond tamp.navmap.MAX_REGIONS the first region past the limit is named."""
+    from tamp.executive import RegionError
+    from tamp.navmap import MAX_REGIONS, NavigationMap
+    from tamp.errors import InvalidRequestError
+
+    world = shared_world("simple")
+    ex = Executive(world, "F a & F b", known=True)
+    before = (ex.status(), dict(ex.regions), ex.planner, ex.task)
+    extra = MAX_REGIONS - len(world.regions) + 1
+    regions = {f"q{i}": {"center": [0.0, 0.0], "radius": 0.01} for i in range(extra)}  # (the count is checked first)
+    for call in (lambda: ex.set_regions(regions), lambda: ex.request("F q0", "replace", regions=regions)):
+        with pytest.raises(RegionError) as err:
+            call()
+        assert err.value.rule.value == "count" and err.value.region == f"q{extra - 1}"
+        assert f"{MAX_REGIONS + 1} regions after the change" in str(err.value)
+        assert (ex.status(), dict(ex.regions), ex.planner, ex.task) == before
+    NavigationMap({f"r{i}": (i, 0) for i in range(MAX_REGIONS)}, n_orient=2)
+    with pytest.raises(InvalidRequestError, match="at most"):
+        NavigationMap({f"r{i}": (i, 0) for i in range(MAX_REGIONS + 1)}, n_orient=2)
+
+
 def test_a_refused_mission_keeps_the_regions_out():
     from tamp.errors import UnsatisfiableError
 
