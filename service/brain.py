@@ -96,6 +96,15 @@ def _pose_dict(p: PoseMsg) -> dict:
     return {"stamp": p.stamp, "x": p.x, "y": p.y, "theta": p.theta}
 
 
+def _points_message(points: PointsMsg | None) -> dict | None:
+    """The ``points`` message the executive's perception reads (``ObstacleMap.update_points``).
+    Until the forty-eighth session the bare array went through, which perception refuses
+    ("points message must be a JSON object"): every ``points`` message on the bus was dropped."""
+    if points is None:
+        return None
+    return {"stamp": points.stamp, "points": points.points}
+
+
 @dataclass
 class ExecutiveBrain:
     """:class:`Brain` over :class:`tamp.executive.Executive`.
@@ -143,13 +152,13 @@ class ExecutiveBrain:
     def tick(self, pose, *, scan=None, scan_pose=None, points=None, now):
         sensor = None if scan_pose is None or (scan is None and points is None) else _pose_dict(scan_pose)
         r = self._ex.tick(_pose_dict(pose), scan=scan.message if scan is not None else None,
-                          points=points.points if points is not None else None, now=now, sensor_pose=sensor)
+                          points=_points_message(points), now=now, sensor_pose=sensor)
         return BrainTick(r.v, r.omega, dict(r.status), r.compute, r.map_changed, r.replanned)
 
     def observe(self, pose, *, scan=None, points=None, now) -> bool:
         """Integrate one more sensor message taken at ``pose`` (``Executive.observe``)."""
         return self._ex.observe(_pose_dict(pose), scan=scan.message if scan is not None else None,
-                                points=points.points if points is not None else None, now=now)
+                                points=_points_message(points), now=now)
 
     def request_task(self, request: TaskRequest) -> dict:
         try:

@@ -147,6 +147,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="simulation speed-up (simulated s per wall s), at most: the simulator waits for the "
                         "service's answer to each pose, never running slower than real time")
     d.add_argument("--seed", type=seed, default=0, help="lidar noise seed of the simulator (>= 0)")
+    d.add_argument("--points", action="store_true",
+                   help="the simulator publishes 'points' (world-frame returns) instead of 'scan'")
     d.add_argument("--json", action="store_true", help="print the summary as one JSON object on stdout")
     d.add_argument("--keep-going", action="store_true",
                    help="run until --duration even after the mission completes (a recurrent mission "
@@ -273,7 +275,7 @@ def _cmd_demo(a) -> int:
     env["PYTHONPATH"] = _repo_root() + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
     sim_cmd = [sys.executable, "-m", "service.sim_node", "--world", str(a.world), "--prefix", cfg.key_prefix,
                "--connect", listen[0], "--speed", repr(a.speed), "--seed", str(a.seed),
-               "--duration", repr(a.duration)]
+               "--duration", repr(a.duration)] + (["--points"] if a.points else [])
     metrics: deque = deque(maxlen=1)
     stopped = threading.Event()
 
@@ -302,10 +304,10 @@ def _cmd_demo(a) -> int:
     with node:
         sub = node.session.declare_subscriber(cfg.key("sim/metrics"), lambda s: metrics.append(s.payload.to_bytes()))
         # the node's watchdog counts from the node's start: wait (up to SIM_START s) for the
-        # simulator process's first pose and scan and restart it then, so that the simulator's
+        # simulator process's first pose and scan (or points) and restart it then, so that the simulator's
         # start-up (imports, session) does not show as a watchdog stop ("blocked: no fresh
         # pose") at the start of every demo
-        up = {"pose": threading.Event(), "scan": threading.Event()}
+        up = {"pose": threading.Event(), "points" if a.points else "scan": threading.Event()}
         first = [node.session.declare_subscriber(cfg.key(k), lambda s, e=e: e.set()) for k, e in up.items()]
         sim = subprocess.Popen(sim_cmd, env=env, stdout=subprocess.DEVNULL)
         try:

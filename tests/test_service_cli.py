@@ -154,6 +154,20 @@ def test_demo_keep_going_patrols_until_the_duration():
     assert {"a", "b"} <= set(summary["visited"][-4:]), summary["visited"]
 
 
+def test_demo_over_points_messages_completes_and_maps_the_obstacles():
+    """``demo --points``: the simulator publishes ``points`` instead of ``scan`` and the mission
+    completes on them over the bus (points messages were dropped by the brain until the
+    forty-eighth session, and the demo waited 60 s for a scan that never came)."""
+    proc = _cli("demo", "--world", str(world_file("simple")), "--speed", "4", "--points", "--json",
+                "--duration", "120", "--prefix", unique_prefix("points"))
+    out, err = proc.communicate(timeout=150)
+    assert proc.returncode == 0, err
+    summary = json.loads(out.strip().splitlines()[-1])
+    assert summary["completed"] is True and summary["collisions"] == 0, (summary, err)
+    assert summary["sim_time"] < 60.0 and summary["warnings"] == 0, summary
+    assert "input dropped" not in err
+
+
 def test_demo_mission_of_simple_completes_over_the_bus_with_a_recording(tmp_path):
     rrd = tmp_path / "demo.rrd"
     proc = _cli("demo", "--world", str(world_file("simple")), "--speed", "4", "--record", str(rrd), "--json",

@@ -108,3 +108,33 @@ def test_builders_emit_strict_json():
         m.status_message(0.0, "running")
     with pytest.raises(ValueError, match="v must be finite"):
         m.cmd_vel_message(0.0, math.nan, 0.0)
+
+
+def test_points_messages_reach_perception_and_the_robot_completes_on_them_alone():
+    """``points`` instead of ``scan`` (FORMATS.md): the brain hands perception a points
+    *message*. Until the forty-eighth session it handed over the bare array, which perception
+    refused, so every points message on the bus was dropped and the map never grew."""
+    import math
+
+    import navigation
+    from service.brain import ExecutiveBrain
+    from service.sim import Simulator
+
+    from .conftest import world_file
+
+    world = navigation.load_world(world_file("simple"))
+    brain = ExecutiveBrain(world, "F a & F b")
+    sim = Simulator(world, seed=0)
+    messages = []
+    for _ in range(1500):
+        pm = m.parse_pose(json.dumps(sim.pose_message()))
+        pts = m.parse_points(json.dumps(sim.points_message()))
+        out = brain.tick(pm, points=pts, scan_pose=pm, now=pm.stamp)
+        assert math.isfinite(out.v) and math.isfinite(out.omega)
+        messages.append(out.status["message"])
+        if out.status["state"] == "done":
+            break
+        sim.step((out.v, out.omega))
+    assert out.status["state"] == "done", messages[-5:]
+    assert not any("input dropped" in msg for msg in messages), [x for x in messages if "dropped" in x][:3]
+    assert len(brain._ex.obstacles) > 0 and not sim.metrics.collisions
