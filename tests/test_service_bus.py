@@ -11,6 +11,7 @@ import json
 import math
 import time
 
+import numpy as np
 import pytest
 from zenoh.ext import HistoryConfig, declare_advanced_subscriber
 
@@ -195,3 +196,29 @@ def test_task_with_new_regions_is_served_over_the_bus_and_refused_regions_change
         scan.undeclare()
         cmds.close()
         status.close()
+
+
+def test_obstacles_key_carries_the_estimate_as_squircles_a_world_file_reads():
+    """``<prefix>/obstacles`` (FORMATS.md): ``{"stamp", "obstacles": [squircle, ...]}`` on
+    change. Every squircle loads with the world-file reader and the estimate covers what the
+    lidar has seen from the start (no test subscribed to this key before)."""
+    world = navigation.load_world(world_file("office"))
+    brain = ExecutiveBrain(world, "F d1")
+    sim = Simulator(world, seed=0)
+    with running_node(brain, rate=20.0, watchdog=2.0) as (node, cl, prefix):
+        obs = Recorder(cl, f"{prefix}/obstacles")
+        feed = Feeder(cl, prefix, sim)
+        feed.run(1.5)
+        assert wait_for(lambda: obs.last, 5.0)
+        msg = obs.last
+        feed.close()
+        obs.close()
+    assert set(msg) == {"stamp", "obstacles"} and math.isfinite(msg["stamp"])
+    squircles = [navigation.Squircle.from_dict(o) for o in msg["obstacles"]]
+    assert len(squircles) == len(brain._ex.obstacles) > 0
+    # the lidar's returns off the workspace boundary all lie on or inside the estimate
+    hits = sim.scan_points()
+    hits = hits[np.abs(world.workspace.distance(hits)) > 0.02]
+    assert len(hits) > 50
+    nearest = np.min([sq.distance(hits) for sq in squircles], axis=0)
+    assert np.all(nearest <= 0.02), np.sort(nearest)[-5:]
