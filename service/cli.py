@@ -197,6 +197,11 @@ def _setup(a):
     if a.world is None:
         raise ServiceError("--world is required for run (a world file or built-in name)")
     world = navigation.load_world(a.world)
+    from tamp.navmap import MAX_REGIONS
+
+    if len(world.regions) > MAX_REGIONS:  # (not the task's fault, as the brain's error would say)
+        raise ServiceError(f"{a.world}: {len(world.regions)} regions; missions are planned over at most "
+                           f"{MAX_REGIONS} (tamp.navmap.MAX_REGIONS)")
     # compile now (first run on a machine), not at the robot's first map change; say so if it takes
     seconds = prepare(lambda: print("tamp-service: compiling the navigation kernels (first run on this machine "
                                     "only, up to about a minute) ...", file=sys.stderr, flush=True))

@@ -251,3 +251,21 @@ def _port_open(port: int) -> bool:
         return True
     except OSError:
         return False
+
+
+def test_a_world_with_more_regions_than_a_map_holds_is_one_error_line(tmp_path, capsys):
+    from tamp.navmap import MAX_REGIONS
+
+    data = json.loads(world_file("simple").read_text())
+    data["workspace"] = {"center": [10, 10], "width": 20, "height": 20, "theta": 0, "s": 0.99}
+    data["obstacles"], data["known_obstacles"] = [], []
+    data["regions"] = {f"q{i}": {"center": [3 + (i % 11) * 1.4, 3 + (i // 11) * 1.4], "radius": 0.1}
+                       for i in range(MAX_REGIONS + 1)}
+    data["robot"]["start"] = [10.0, 1.5, 0.0]
+    data["task"] = "F q0"
+    data.pop("events", None)
+    path = tmp_path / "crowded.json"
+    path.write_text(json.dumps(data))
+    assert main(["run", "--world", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{MAX_REGIONS + 1} regions" in err and "--task" not in err, err
