@@ -47,6 +47,12 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"error: {message}\n")
 
 
+def _split_port(text: str) -> tuple[str, int | None]:
+    """``HOST:PORT`` -> ``(HOST, PORT)``; the port ``None`` unless it is an integer in 1..65535."""
+    host, _, port = text.rpartition(":")
+    return host, int(port) if port.isdigit() and 1 <= int(port) <= 65535 else None
+
+
 def _viewer(text: str) -> str:
     """``--viewer``: a Rerun URL (``rerun://``, ``rerun+http://``, ``rerun+https://``) or
     ``HOST:PORT`` with a port in 1..65535."""
@@ -54,8 +60,8 @@ def _viewer(text: str) -> str:
         if not text.startswith(("rerun://", "rerun+http://", "rerun+https://")):
             raise argparse.ArgumentTypeError(f"expected a rerun://, rerun+http:// or rerun+https:// URL, got {text!r}")
         return text
-    host, _, port = text.rpartition(":")
-    if not host or not port.isdigit() or not 1 <= int(port) <= 65535:
+    host, port = _split_port(text)
+    if not host or port is None:
         raise argparse.ArgumentTypeError(f"expected HOST:PORT (e.g. 127.0.0.1:9876) or a rerun+http:// URL, "
                                          f"got {text!r}")
     return text
@@ -66,15 +72,15 @@ def _serve(text: str) -> tuple[str, int]:
     the service hosts. Rerun binds IP literals only (``0.0.0.0`` for every interface)."""
     import ipaddress
 
-    host, _, port = text.rpartition(":")
+    host, port = _split_port(text)
     host = host.strip("[]") or "127.0.0.1"
     try:
         ipaddress.ip_address(host)
     except ValueError:
         host = ""
-    if not host or not port.isdigit() or not 1 <= int(port) <= 65535:
+    if not host or port is None:
         raise argparse.ArgumentTypeError(f"expected PORT or IP:PORT (e.g. 9876, 0.0.0.0:9876), got {text!r}")
-    return host, int(port)
+    return host, port
 
 
 def _common(p: argparse.ArgumentParser, *, default_world: str | None) -> None:
@@ -190,18 +196,13 @@ def _setup(a):
     from tamp.run import prepare
 
     from .brain import ExecutiveBrain
-    from .errors import ServiceError, TaskRejected
+    from .errors import ServiceError, TaskErrorCode, TaskRejected
     from .node import NodeConfig
     from .viz import Telemetry
 
     if a.world is None:
         raise ServiceError("--world is required for run (a world file or built-in name)")
     world = navigation.load_world(a.world)
-    from tamp.navmap import MAX_REGIONS
-
-    if len(world.regions) > MAX_REGIONS:  # (not the task's fault, as the brain's error would say)
-        raise ServiceError(f"{a.world}: {len(world.regions)} regions; missions are planned over at most "
-                           f"{MAX_REGIONS} (tamp.navmap.MAX_REGIONS)")
     # compile now (first run on a machine), not at the robot's first map change; say so if it takes
     seconds = prepare(lambda: print("tamp-service: compiling the navigation kernels (first run on this machine "
                                     "only, up to about a minute) ...", file=sys.stderr, flush=True))
@@ -215,7 +216,11 @@ def _setup(a):
         from navigation.errors import TampError
 
         if isinstance(err, TampError):
-            raise TaskRejected(task_error_code(err), f"--task: {err}") from None
+            code = task_error_code(err)
+            # the formula's own errors name --task; the others (a world beyond the navigation
+            # map's region limit, say) are not the task's fault
+            about_task = code is not TaskErrorCode.INVALID_REQUEST
+            raise TaskRejected(code, f"--task: {err}" if about_task else str(err)) from None
         raise
     gc.collect()  # the world and the brain join the frozen start-up heap (see tamp.run.prepare)
     gc.freeze()

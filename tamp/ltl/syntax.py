@@ -87,11 +87,12 @@ class _Parser:
         self.i = 0
         self.depth = 0
 
-    def nest(self):
-        """Enter one level of nesting (the caller leaves it with ``self.depth -= 1``)."""
+    def nest(self, tok=None):
+        """Enter one level of nesting at ``tok`` (default: the next token); the caller leaves it
+        with ``self.depth -= 1``."""
         self.depth += 1
         if self.depth > MAX_NESTING:
-            self.error(f"formula nested deeper than {MAX_NESTING} levels")
+            self.error(f"formula nested deeper than {MAX_NESTING} levels", tok)
 
     def peek(self):
         return self.toks[self.i]
@@ -196,9 +197,7 @@ class _Parser:
             return TRUE if value == "1" else FALSE
         if kind == "op" and value == "(":
             self.expect_operand("(")
-            self.i -= 1  # (an error names the '(')
-            self.nest()
-            self.i += 1
+            self.nest(tok)
             f = self.equiv()
             self.depth -= 1
             if self.peek()[:2] != ("op", ")"):
